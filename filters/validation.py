@@ -1,0 +1,80 @@
+"""Input validation shared by all filters: clear errors naming the parameter and its valid range."""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+__all__ = ["check_range", "check_int", "check_finite_vector", "check_points", "check_choice"]
+
+
+def check_range(name: str, value, low: float = -math.inf, high: float = math.inf, *,
+                low_inclusive: bool = True, high_inclusive: bool = True) -> float:
+    """Return ``value`` as a float if it is a real number within the given range.
+
+    Raises
+    ------
+    TypeError
+        If ``value`` is not a real number.
+    ValueError
+        If it is NaN or outside ``[low, high]`` (or the open ends asked for), naming ``name``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    ok = not math.isnan(value)
+    ok = ok and (value >= low if low_inclusive else value > low)
+    ok = ok and (value <= high if high_inclusive else value < high)
+    if not ok:
+        left = "[" if low_inclusive else "("
+        right = "]" if high_inclusive else ")"
+        raise ValueError(f"{name} must be in {left}{low:g}, {high:g}{right}, got {value!r}")
+    return value
+
+
+def check_int(name: str, value, low: int | None = None, high: int | None = None) -> int:
+    """Return ``value`` as an int if it is an integer within ``[low, high]``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
+    value = int(value)
+    if (low is not None and value < low) or (high is not None and value > high):
+        lo = "-inf" if low is None else low
+        hi = "inf" if high is None else high
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value}")
+    return value
+
+
+def check_finite_vector(name: str, value, size: int) -> np.ndarray:
+    """Return ``value`` as a finite float64 vector of length ``size``."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a sequence of {size} numbers, got {value!r}") from None
+    if array.shape != (size,):
+        raise ValueError(f"{name} must have {size} components, got shape {array.shape}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} must be finite, got {array.tolist()}")
+    return array
+
+
+def check_points(name: str, value) -> np.ndarray:
+    """Return ``value`` as a C-contiguous finite ``(N, 3) float64`` array."""
+    try:
+        array = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be an (N, 3) array of numbers") from None
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (N, 3), got {array.shape}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return array
+
+
+def check_choice(name: str, value, choices) -> str:
+    """Return ``value`` if it is one of ``choices``; the error lists the options."""
+    if value not in choices:
+        options = ", ".join(repr(c) for c in choices)
+        raise ValueError(f"{name} must be one of {options}; got {value!r}")
+    return value

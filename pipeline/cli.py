@@ -1,0 +1,218 @@
+"""The ``blobflow`` command line (also ``python -m pipeline``).
+
+Exit codes: 0 success; 1 the run failed while simulating (the frames written so far stay valid);
+2 bad usage or input (one line on stderr, nothing written); 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+__all__ = ["main"]
+
+
+class UsageError(Exception):
+    """A mistake of the user's: reported as one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, not usage + message
+        raise UsageError(message)
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="blobflow", description="Particle simulations and implicit surfaces as "
+                     "VTK pipelines, written as ParaView-ready time series.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    p_list = sub.add_parser("list", help="list the installed scenes")
+    p_list.add_argument("-v", "--verbose", action="store_true",
+                        help="also list every scene's parameters with defaults")
+
+    p_run = sub.add_parser("run", help="run a scene into an output folder")
+    p_run.add_argument("scene", help="scene name (see `blobflow list`)")
+    length = p_run.add_mutually_exclusive_group()
+    length.add_argument("--duration", type=float, metavar="S", help="simulated seconds")
+    length.add_argument("--frames", type=int, metavar="N", help="number of frames")
+    p_run.add_argument("--fps", type=float, metavar="F", help="frames per second")
+    p_run.add_argument("--out", metavar="DIR", help="output folder (default outputs/SCENE)")
+    p_run.add_argument("--set", dest="assignments", action="append", default=[],
+                       metavar="NAME=VALUE", help="override a scene parameter (repeatable)")
+    p_run.add_argument("--resume", action="store_true",
+                       help="continue the series already in the output folder")
+    p_run.add_argument("--no-render", action="store_true",
+                       help="write the series only, no turntable GIF or movie")
+    p_run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
+    p_info.add_argument("series", help="path to a .pvd or .series file")
+    return parser
+
+
+# -- list ---------------------------------------------------------------------------------------
+def _cmd_list(args) -> int:
+    from .scene import available_scenes, load_scene
+
+    names = list(available_scenes())
+    if not names:
+        print("no scenes installed")
+        return 0
+    width = max(map(len, names))
+    for name in names:
+        scene = load_scene(name)
+        print(f"{name:<{width}}  {scene.description}")
+        if args.verbose:
+            for p in scene.parameters.values():
+                print(f"    {p.name} = {p.default!r}  ({p.kind}) {p.doc}")
+    return 0
+
+
+# -- run ----------------------------------------------------------------------------------------
+def _check_writable(directory: Path) -> None:
+    """Fail early, with one line, if ``directory`` cannot be created or written."""
+    probe = directory
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UsageError(f"cannot create output folder {directory}: {probe} is not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(f"output folder {directory} is not writable")
+    if directory.exists():
+        try:
+            with tempfile.TemporaryFile(dir=directory):
+                pass
+        except OSError as exc:
+            raise UsageError(f"output folder {directory} is not writable: {exc.strerror}") from None
+
+
+def _scene_record(scene, parameters, fps) -> dict:
+    return {"scene": scene.name, "fps": fps, "parameters": parameters}
+
+
+def _cmd_run(args) -> int:
+    from filters.simulation import SimulationError
+
+    from .scene import load_scene
+
+    try:
+        scene = load_scene(args.scene)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    out = Path(args.out) if args.out else Path("outputs") / scene.name
+    fps = scene.fps if args.fps is None else args.fps
+    if args.frames is None and args.duration is None:
+        duration = scene.duration
+    else:
+        duration = args.duration
+    if not (fps > 0):
+        raise UsageError(f"--fps must be > 0, got {fps}")
+    if duration is not None and not (duration >= 0):
+        raise UsageError(f"--duration must be >= 0 seconds, got {duration}")
+    if args.frames is not None and args.frames < 1:
+        raise UsageError(f"--frames must be >= 1, got {args.frames}")
+    try:
+        overrides = scene.parse_assignments(args.assignments)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    parameters = {**scene.defaults(), **overrides}
+    record_path = out / "scene.json"
+    if args.resume and record_path.is_file():
+        saved = json.loads(record_path.read_text())
+        if saved.get("scene") != scene.name:
+            raise UsageError(f"{out} holds a run of scene {saved.get('scene')!r}, not {scene.name!r}")
+        saved_params = {k: (tuple(v) if isinstance(v, list) else v)
+                        for k, v in saved.get("parameters", {}).items()}
+        clashes = [k for k, v in overrides.items() if k in saved_params and saved_params[k] != v]
+        if clashes:
+            raise UsageError(
+                f"--resume with other parameters than the run in {out}: {', '.join(clashes)}"
+            )
+        parameters = {**parameters, **saved_params}
+        if args.fps is None:
+            fps = saved.get("fps", fps)
+        elif saved.get("fps") not in (None, fps):
+            raise UsageError(f"--resume needs the same --fps as the run in {out} ({saved['fps']})")
+    _check_writable(out)
+    try:
+        flow = scene.build(**parameters)
+        flow.source.set_frames(fps, duration=duration, frames=args.frames)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"scene {scene.name!r}: {exc}") from None
+
+    out.mkdir(parents=True, exist_ok=True)
+    record = _scene_record(scene, parameters, fps)
+    (out / "scene.json").write_text(json.dumps(record, indent=1, default=list) + "\n")
+    try:
+        paths = flow.run(out, resume=args.resume, progress=not args.quiet)
+    except SimulationError as exc:
+        print(f"blobflow: {exc}", file=sys.stderr)
+        print(f"blobflow: the frames written before the failure are valid in {out}", file=sys.stderr)
+        return 1
+    print(f"wrote {len(flow.times)} frames of scene {scene.name!r} to {out}/")
+    for name, path in paths.items():
+        print(f"  {name}: {path}")
+    return 0
+
+
+# -- info ---------------------------------------------------------------------------------------
+def _cmd_info(args) -> int:
+    import numpy as np
+
+    from .convert import STATE_PREFIX
+    from .series import SeriesError, read_series
+
+    path = Path(args.series)
+    try:
+        times, datasets = read_series(path)
+    except (FileNotFoundError, SeriesError) as exc:
+        raise UsageError(str(exc)) from None
+    print(f"{path}: {len(times)} frames")
+    if not len(times):
+        return 0
+    print(f"  times: {times[0]:g} .. {times[-1]:g} s" + (
+        f" (every {np.diff(times).mean():g} s)" if len(times) > 1 else ""))
+    first = datasets[0]
+    print(f"  type: {type(first).__name__}")
+    for label, attrs in (("point", first.point_data), ("cell", first.cell_data)):
+        names = [f"{n} ({attrs[n].shape[1] if attrs[n].ndim > 1 else 1})" for n in attrs.keys()]
+        print(f"  {label} arrays: {', '.join(names) or 'none'}")
+    fields = [n for n in first.field_data.keys() if not n.startswith(STATE_PREFIX)]
+    print(f"  field arrays: {', '.join(fields) or 'none'}"
+          + ("; checkpointed (resumable)" if any(n.startswith(STATE_PREFIX) for n in first.field_data.keys()) else ""))
+    bounds = np.array([d.bounds for d in datasets if d.n_points], dtype=float).reshape(-1, 6)
+    if len(bounds):
+        lo = bounds[:, 0::2].min(axis=0)
+        hi = bounds[:, 1::2].max(axis=0)
+        print(f"  bounds: x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g}, z {lo[2]:g} .. {hi[2]:g}")
+    counts = [d.n_points for d in datasets]
+    print(f"  points per frame: {min(counts)} .. {max(counts)}")
+    if len(times) <= 12:
+        for t, d in zip(times, datasets):
+            print(f"    t = {t:<10g} {d.n_points} points, {d.n_cells} cells")
+    return 0
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``blobflow`` console script; returns the exit code."""
+    parser = _build_parser()
+    try:
+        args = parser.parse_args(argv)
+        command = {"list": _cmd_list, "run": _cmd_run, "info": _cmd_info}[args.command]
+        return command(args)
+    except UsageError as exc:
+        print(f"blobflow: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("blobflow: interrupted; the frames written so far are valid (use --resume)",
+              file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,356 @@
+"""Time series on disk: PVD collections (and ParaView ``.series`` files) of VTK XML datasets.
+
+Layout of a series named ``particles`` in ``outputs/run/``::
+
+    outputs/run/particles.pvd            the collection ParaView opens (one animated dataset)
+    outputs/run/particles.vtp.series     the same list in ParaView's JSON file-series format
+    outputs/run/particles/particles_000000.vtp, particles_000001.vtp, ...
+
+Every frame is written to a temporary file and renamed into place, and both collection files are
+rewritten (atomically) after every frame, so a run interrupted at any point leaves a valid, shorter
+series.  XML files are written appended, raw (not base64), zlib-compressed, with UInt64 headers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonDataModel import vtkDataObject
+from vtkmodules.vtkIOXML import (
+    vtkXMLImageDataReader,
+    vtkXMLImageDataWriter,
+    vtkXMLPolyDataReader,
+    vtkXMLPolyDataWriter,
+    vtkXMLUnstructuredGridReader,
+    vtkXMLUnstructuredGridWriter,
+)
+
+__all__ = [
+    "SeriesWriter",
+    "SeriesError",
+    "read_series",
+    "read_collection",
+    "read_frame",
+    "export_xdmf",
+    "check_finite_dataset",
+]
+
+_WRITERS = {
+    "vtkPolyData": (".vtp", vtkXMLPolyDataWriter),
+    "vtkUnstructuredGrid": (".vtu", vtkXMLUnstructuredGridWriter),
+    "vtkImageData": (".vti", vtkXMLImageDataWriter),
+}
+_READERS = {
+    ".vtp": vtkXMLPolyDataReader,
+    ".vtu": vtkXMLUnstructuredGridReader,
+    ".vti": vtkXMLImageDataReader,
+}
+
+
+class SeriesError(ValueError):
+    """A collection file is missing, malformed, or lists frames that cannot be read."""
+
+
+def _format_time(t: float) -> str:
+    # repr gives the shortest string that reads back to the same double: 0.1 stays "0.1".
+    return repr(float(t))
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def check_finite_dataset(data: vtkDataObject, what: str = "dataset") -> None:
+    """Raise ``ValueError`` if the points or any floating-point array of ``data`` is non-finite."""
+    arrays = []
+    if hasattr(data, "GetPoints") and data.GetPoints() is not None:
+        arrays.append(("points", data.GetPoints().GetData()))
+    for label, attributes in (("point", data.GetAttributes(0)), ("cell", data.GetAttributes(1)),
+                              ("field", data.GetFieldData())):
+        if attributes is None:
+            continue
+        for i in range(attributes.GetNumberOfArrays()):
+            array = attributes.GetArray(i)
+            if array is not None:
+                arrays.append((f"{label} array {array.GetName()!r}", array))
+    for name, array in arrays:
+        values = numpy_support.vtk_to_numpy(array)
+        if np.issubdtype(values.dtype, np.floating) and not np.isfinite(values).all():
+            raise ValueError(f"refusing to write {what}: {name} holds NaN or infinite values")
+
+
+class SeriesWriter:
+    """Write a PVD series one frame at a time, valid after every frame.
+
+    Parameters
+    ----------
+    path : str or Path
+        The collection file, ``DIR/NAME.pvd``.  Frames go to ``DIR/NAME/NAME_%06d.EXT`` and a
+        ParaView ``DIR/NAME.EXT.series`` file is kept beside it.
+    resume : bool
+        Keep the frames already listed in an existing collection and append after them.
+        Otherwise the series starts empty (old frames of this series are removed on the first
+        write, so nothing stale is left behind).
+
+    Attributes
+    ----------
+    entries : list of (float, str)
+        Time and relative file name of every frame written so far.
+    """
+
+    def __init__(self, path, *, resume: bool = False):
+        self.path = Path(path)
+        if self.path.suffix != ".pvd":
+            raise ValueError(f"a series path must end in .pvd, got {str(self.path)!r}")
+        self.name = self.path.stem
+        self.frames_dir = self.path.parent / self.name
+        self.entries: list[tuple[float, str]] = []
+        self._class: str | None = None
+        self._fresh = not resume
+        if resume and self.path.exists():
+            self.entries = read_collection(self.path)
+            if self.entries:
+                ext = Path(self.entries[0][1]).suffix
+                self._class = next(c for c, (e, _) in _WRITERS.items() if e == ext)
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    @property
+    def times(self) -> list[float]:
+        """Times of the frames written so far."""
+        return [t for t, _ in self.entries]
+
+    def truncate(self, n_frames: int) -> None:
+        """Keep only the first ``n_frames`` frames (used when resuming several series at once)."""
+        for _, name in self.entries[n_frames:]:
+            (self.path.parent / name).unlink(missing_ok=True)
+        self.entries = self.entries[:n_frames]
+        self._write_collections()
+
+    def _clear_stale(self) -> None:
+        if self.frames_dir.is_dir():
+            pattern = re.compile(rf"^{re.escape(self.name)}_\d+\.vt[pui]$")
+            for f in self.frames_dir.iterdir():
+                if pattern.match(f.name):
+                    f.unlink()
+        self._fresh = False
+
+    def write(self, data: vtkDataObject, time: float) -> Path:
+        """Append ``data`` as the frame at ``time`` (s) and rewrite the collection files.
+
+        Raises
+        ------
+        TypeError
+            If ``data``'s type differs from the series' first frame (one data type per series) or
+            cannot be written as a single XML file.
+        ValueError
+            If ``time`` does not increase, or the data holds NaN or infinite values.
+        """
+        cls = data.GetClassName()
+        if cls not in _WRITERS:
+            raise TypeError(f"cannot write {cls} as a series frame; supported: {sorted(_WRITERS)}")
+        if self._class is not None and cls != self._class:
+            raise TypeError(f"series {self.name!r} holds {self._class}, cannot add a {cls}")
+        time = float(time)
+        if self.entries and time <= self.entries[-1][0]:
+            raise ValueError(f"frame times must increase: {time} after {self.entries[-1][0]}")
+        check_finite_dataset(data, f"frame t = {time} of series {self.name!r}")
+        if self._fresh:
+            self._clear_stale()
+        self._class = cls
+        ext, writer_class = _WRITERS[cls]
+        self.frames_dir.mkdir(parents=True, exist_ok=True)
+        file_name = f"{self.name}_{len(self.entries):06d}{ext}"
+        final = self.frames_dir / file_name
+        tmp = self.frames_dir / f".{file_name}.tmp"
+        writer = writer_class()
+        writer.SetInputData(data)
+        writer.SetFileName(str(tmp))
+        writer.SetDataModeToAppended()
+        writer.EncodeAppendedDataOff()
+        writer.SetCompressorTypeToZLib()
+        writer.SetHeaderTypeToUInt64()
+        if writer.Write() != 1 or writer.GetErrorCode() != 0:
+            tmp.unlink(missing_ok=True)
+            raise OSError(f"VTK could not write {final}")
+        os.replace(tmp, final)
+        self.entries.append((time, f"{self.name}/{file_name}"))
+        self._write_collections()
+        return final
+
+    def _write_collections(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        lines = [
+            '<?xml version="1.0"?>',
+            '<VTKFile type="Collection" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+            "  <Collection>",
+        ]
+        for t, name in self.entries:
+            lines.append(f'    <DataSet timestep="{_format_time(t)}" group="" part="0" file="{name}"/>')
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        _atomic_write_text(self.path, "\n".join(lines))
+        if self._class is not None:
+            ext = _WRITERS[self._class][0]
+            series = {
+                "file-series-version": "1.0",
+                "files": [{"name": name, "time": float(t)} for t, name in self.entries],
+            }
+            _atomic_write_text(self.path.with_name(f"{self.name}{ext}.series"),
+                               json.dumps(series, indent=1) + "\n")
+
+
+def read_collection(path) -> list[tuple[float, str]]:
+    """Times and relative file names listed by a ``.pvd`` or ``.series`` file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    SeriesError
+        If the file is not a valid collection.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such series file: {path}")
+    try:
+        if path.suffix == ".series":
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            entries = [(float(f["time"]), str(f["name"])) for f in doc["files"]]
+        elif path.suffix == ".pvd":
+            root = ET.parse(path).getroot()
+            if root.get("type") != "Collection":
+                raise SeriesError(f"{path} is not a VTK Collection file")
+            entries = [(float(d.get("timestep", "0")), d.get("file")) for d in root.iter("DataSet")]
+        else:
+            raise SeriesError(f"a series file ends in .pvd or .series, got {path.name!r}")
+    except (ET.ParseError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        if isinstance(exc, SeriesError):
+            raise
+        raise SeriesError(f"{path} is not a valid series file: {exc}") from None
+    if any(name is None for _, name in entries):
+        raise SeriesError(f"{path} lists a DataSet without a file")
+    return entries
+
+
+def read_frame(path) -> vtkDataObject:
+    """Read one VTK XML file (``.vtp``, ``.vtu``, ``.vti``) with VTK's own reader."""
+    path = Path(path)
+    reader_class = _READERS.get(path.suffix)
+    if reader_class is None:
+        raise SeriesError(f"cannot read {path.name}: supported {sorted(_READERS)}")
+    if not path.is_file():
+        raise SeriesError(f"series frame {path} is missing")
+    reader = reader_class()
+    if not reader.CanReadFile(str(path)):
+        raise SeriesError(f"series frame {path} is not a readable VTK XML file")
+    reader.SetFileName(str(path))
+    reader.Update()
+    return reader.GetOutputDataObject(0)
+
+
+def read_series(path):
+    """Read a whole series.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.pvd`` or ``.series`` file.
+
+    Returns
+    -------
+    times : (F,) float64 array
+        Frame times (s).
+    datasets : list of pyvista.DataSet
+        The frames, read with VTK's XML readers.
+    """
+    import pyvista as pv
+
+    path = Path(path)
+    entries = read_collection(path)
+    datasets = [pv.wrap(read_frame(path.parent / name)) for _, name in entries]
+    return np.array([t for t, _ in entries], dtype=np.float64), datasets
+
+
+_MESHIO_CELL_TYPES = {1: "vertex", 3: "line", 5: "triangle", 9: "quad", 10: "tetra",
+                      12: "hexahedron", 13: "wedge", 14: "pyramid"}
+
+
+def _meshio_cells(mesh):
+    import pyvista as pv
+
+    grid = mesh if isinstance(mesh, pv.UnstructuredGrid) else mesh.cast_to_unstructured_grid()
+    cells = []
+    for vtk_type, block in sorted(grid.cells_dict.items()):
+        if int(vtk_type) not in _MESHIO_CELL_TYPES:
+            raise ValueError(f"VTK cell type {vtk_type} has no XDMF equivalent in this exporter")
+        cells.append((_MESHIO_CELL_TYPES[int(vtk_type)], np.asarray(block, dtype=np.int64)))
+    return cells
+
+
+def export_xdmf(series_path, xdmf_path=None) -> Path:
+    """Export a fixed-topology series as XDMF (with HDF5 heavy data) through meshio.
+
+    meshio's XDMF time series keeps one mesh for all steps, so the first frame's points are the
+    mesh and every step carries a point array ``displacement`` (points minus first points) beside
+    the series' own point arrays; in ParaView apply *Warp By Vector* on ``displacement`` to see
+    the motion.  Use it for cloth, jello and hair, whose topology never changes.
+
+    Parameters
+    ----------
+    series_path : str or Path
+        A ``.pvd`` or ``.series`` collection.
+    xdmf_path : str or Path, optional
+        Output file; the collection's name with ``.xdmf`` when omitted.
+
+    Raises
+    ------
+    ValueError
+        If the topology (point count or cells) changes between frames.
+    """
+    import meshio
+
+    series_path = Path(series_path)
+    xdmf_path = Path(xdmf_path) if xdmf_path else series_path.with_suffix(".xdmf")
+    times, meshes = read_series(series_path)
+    if not meshes:
+        raise ValueError(f"{series_path} has no frames to export")
+    first = meshes[0]
+    cells = _meshio_cells(first)
+    for t, mesh in zip(times, meshes):
+        same = mesh.n_points == first.n_points and all(
+            kind == k2 and np.array_equal(block, b2)
+            for (kind, block), (k2, b2) in zip(cells, _meshio_cells(mesh))
+        )
+        if not same:
+            raise ValueError(
+                f"{series_path.name} changes topology at t = {t}; XDMF export needs a fixed mesh"
+            )
+    rest = np.asarray(first.points, dtype=np.float64)
+    tmp = xdmf_path.with_name(f".{xdmf_path.name}.tmp")
+    with meshio.xdmf.TimeSeriesWriter(str(tmp)) as writer:
+        writer.write_points_cells(rest, cells)
+        for t, mesh in zip(times, meshes):
+            data = {"displacement": np.asarray(mesh.points, dtype=np.float64) - rest}
+            for name in mesh.point_data.keys():
+                data[name] = np.asarray(mesh.point_data[name])
+            writer.write_data(float(t), point_data=data)
+    # meshio names the heavy-data file after the XML file: move both into place.
+    h5_tmp = tmp.with_suffix(".h5")
+    h5_final = xdmf_path.with_suffix(".h5")
+    text = tmp.read_text(encoding="utf-8").replace(h5_tmp.name, h5_final.name)
+    os.replace(h5_tmp, h5_final)
+    _atomic_write_text(xdmf_path, text)
+    tmp.unlink(missing_ok=True)
+    return xdmf_path
