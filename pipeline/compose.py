@@ -8,6 +8,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
+from .algorithm import raise_pending
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, export_xdmf, read_frame
 from .sources import SimulationSource
@@ -110,8 +111,10 @@ class Flow:
         """Update output ``name`` at ``time`` and return a copy of its data object."""
         if name not in self.stages:
             raise ValueError(f"name must be one of {sorted(self.stages)}, got {name!r}")
-        algorithm = self.stages[name].algorithm
+        stage = self.stages[name]
+        algorithm = stage.algorithm
         algorithm.UpdateTimeStep(float(time))
+        raise_pending(stage.chain)
         data = algorithm.GetOutputDataObject(0)
         copy = data.NewInstance()
         copy.ShallowCopy(data)

@@ -338,19 +338,25 @@ def export_xdmf(series_path, xdmf_path=None) -> Path:
                 f"{series_path.name} changes topology at t = {t}; XDMF export needs a fixed mesh"
             )
     rest = np.asarray(first.points, dtype=np.float64)
-    tmp = xdmf_path.with_name(f".{xdmf_path.name}.tmp")
-    with meshio.xdmf.TimeSeriesWriter(str(tmp)) as writer:
-        writer.write_points_cells(rest, cells)
-        for t, mesh in zip(times, meshes):
-            data = {"displacement": np.asarray(mesh.points, dtype=np.float64) - rest}
-            for name in mesh.point_data.keys():
-                data[name] = np.asarray(mesh.point_data[name])
-            writer.write_data(float(t), point_data=data)
-    # meshio names the heavy-data file after the XML file: move both into place.
-    h5_tmp = tmp.with_suffix(".h5")
+    folder = xdmf_path.parent.resolve()
+    tmp_name = f".{xdmf_path.stem}.tmp"
+    # meshio writes its HDF5 file next to the *working directory* (stem + ".h5"), so write from
+    # inside the target folder, then rename both files into place.
+    previous = os.getcwd()
+    os.chdir(folder)
+    try:
+        with meshio.xdmf.TimeSeriesWriter(tmp_name + ".xdmf") as writer:
+            writer.write_points_cells(rest, cells)
+            for t, mesh in zip(times, meshes):
+                data = {"displacement": np.asarray(mesh.points, dtype=np.float64) - rest}
+                for name in mesh.point_data.keys():
+                    data[name] = np.asarray(mesh.point_data[name])
+                writer.write_data(float(t), point_data=data)
+    finally:
+        os.chdir(previous)
     h5_final = xdmf_path.with_suffix(".h5")
-    text = tmp.read_text(encoding="utf-8").replace(h5_tmp.name, h5_final.name)
-    os.replace(h5_tmp, h5_final)
-    _atomic_write_text(xdmf_path, text)
-    tmp.unlink(missing_ok=True)
+    os.replace(folder / (tmp_name + ".h5"), folder / h5_final.name)
+    text = (folder / (tmp_name + ".xdmf")).read_text(encoding="utf-8")
+    _atomic_write_text(folder / xdmf_path.name, text.replace(tmp_name + ".h5", h5_final.name))
+    (folder / (tmp_name + ".xdmf")).unlink()
     return xdmf_path

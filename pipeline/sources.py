@@ -6,13 +6,13 @@ import math
 from collections import OrderedDict
 
 import numpy as np
-from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonDataModel import vtkDataObject
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
 from filters.simulation import TIME_DECIMALS, Simulation, State, frame_times
 from filters.validation import check_choice, check_int
 
+from .algorithm import Algorithm
 from .convert import frame_to_vtk, state_to_field_data
 
 __all__ = ["SimulationSource"]
@@ -21,7 +21,7 @@ _SDDP = vtkStreamingDemandDrivenPipeline
 _VTK_TYPES = {"polydata": "vtkPolyData", "unstructured": "vtkUnstructuredGrid"}
 
 
-class SimulationSource(VTKPythonAlgorithmBase):
+class SimulationSource(Algorithm):
     """Temporal VTK source publishing the frames of a simulation.
 
     The source publishes ``TIME_STEPS`` and ``TIME_RANGE`` from ``fps`` and ``duration`` (or
@@ -63,8 +63,7 @@ class SimulationSource(VTKPythonAlgorithmBase):
             raise TypeError(f"simulation must be a filters.Simulation, got {type(simulation).__name__}")
         spec = simulation.output_spec
         dataset = check_choice("dataset", dataset or spec.dataset, tuple(_VTK_TYPES))
-        VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1,
-                                        outputType=_VTK_TYPES[dataset])
+        Algorithm.__init__(self, nInputPorts=0, nOutputPorts=1, outputType=_VTK_TYPES[dataset])
         self.simulation = simulation
         self.dataset = dataset
         self.checkpoint = bool(checkpoint)
