@@ -50,6 +50,21 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="write the series only, no turntable GIF or movie")
     p_run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
+    p_render = sub.add_parser("render", help="render series offscreen: a time-lapse or a turntable")
+    p_render.add_argument("series", nargs="+", help=".pvd or .series files drawn together")
+    p_render.add_argument("--turntable", type=int, metavar="N",
+                          help="orbit N frames around one time step instead of a time-lapse")
+    p_render.add_argument("--time-index", type=int, default=-1, metavar="I",
+                          help="time step of the turntable (default the last)")
+    p_render.add_argument("--orbit", type=float, default=0.0, metavar="DEG",
+                          help="degrees the camera orbits during a time-lapse")
+    p_render.add_argument("--out", metavar="FILE.gif|FILE.mp4|DIR",
+                          help="output (default beside the first series)")
+    p_render.add_argument("--size", default="640x480", metavar="WxH", help="image size in pixels")
+    p_render.add_argument("--color-by", metavar="ARRAY", help="colour by a point array")
+    p_render.add_argument("--fps", type=float, metavar="F", help="movie frame rate")
+    p_render.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
     return parser
@@ -154,9 +169,49 @@ def _cmd_run(args) -> int:
         print(f"blobflow: {exc}", file=sys.stderr)
         print(f"blobflow: the frames written before the failure are valid in {out}", file=sys.stderr)
         return 1
+    if not args.no_render:
+        from .render import render_run
+
+        paths.update(render_run(paths.values(), out, progress=not args.quiet))
     print(f"wrote {len(flow.times)} frames of scene {scene.name!r} to {out}/")
     for name, path in paths.items():
         print(f"  {name}: {path}")
+    return 0
+
+
+# -- render -------------------------------------------------------------------------------------
+def _cmd_render(args) -> int:
+    from .render import parse_size, timelapse, turntable
+    from .series import SeriesError, read_collection
+
+    paths = [Path(p) for p in args.series]
+    try:
+        for path in paths:
+            read_collection(path)
+        size = parse_size(args.size)
+    except (FileNotFoundError, SeriesError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    if args.turntable is not None and args.turntable < 2:
+        raise UsageError(f"--turntable must be >= 2 frames, got {args.turntable}")
+    if args.fps is not None and not args.fps > 0:
+        raise UsageError(f"--fps must be > 0, got {args.fps}")
+    stem = paths[0].name.split(".")[0]
+    default = f"{stem}_turntable.gif" if args.turntable else f"{stem}.mp4"
+    out = Path(args.out) if args.out else paths[0].parent / default
+    if out.suffix and out.suffix.lower() not in (".gif", ".mp4"):
+        raise UsageError(f"--out must end in .gif or .mp4, or name a folder for PNG files; got {out}")
+    _check_writable(out.parent if out.suffix else out)
+    try:
+        if args.turntable:
+            result = turntable(paths, out, frames=args.turntable, time_index=args.time_index,
+                               size=size, color_by=args.color_by, fps=args.fps or 24.0,
+                               progress=not args.quiet)
+        else:
+            result = timelapse(paths, out, orbit=args.orbit, size=size, color_by=args.color_by,
+                               fps=args.fps, progress=not args.quiet)
+    except (SeriesError, ValueError, IndexError) as exc:
+        raise UsageError(str(exc)) from None
+    print(f"wrote {result}")
     return 0
 
 
@@ -203,7 +258,8 @@ def main(argv=None) -> int:
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
-        command = {"list": _cmd_list, "run": _cmd_run, "info": _cmd_info}[args.command]
+        command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
+                   "info": _cmd_info}[args.command]
         return command(args)
     except UsageError as exc:
         print(f"blobflow: error: {exc}", file=sys.stderr)
