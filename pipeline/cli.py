@@ -64,10 +64,120 @@ def _build_parser() -> argparse.ArgumentParser:
     p_render.add_argument("--color-by", metavar="ARRAY", help="colour by a point array")
     p_render.add_argument("--fps", type=float, metavar="F", help="movie frame rate")
     p_render.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_cluster_options(p_render)
+
+    p_surface = sub.add_parser("surface", help="reconstruct the surface of every frame of a "
+                               "particle series (serially or on a Dask cluster)")
+    p_surface.add_argument("particles", help="particle series (.pvd or .series)")
+    p_surface.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p_surface.add_argument("--name", default="surface", help="series name (default surface)")
+    p_surface.add_argument("--radius", type=float, default=0.01, metavar="R",
+                           help="particle radius (m)")
+    p_surface.add_argument("--cell-size", type=float, metavar="H",
+                           help="voxel edge (m), default radius / 2")
+    p_surface.add_argument("--kernel", default="sph", help="splatting kernel")
+    p_surface.add_argument("--smooth-iterations", type=int, default=20, metavar="N")
+    p_surface.add_argument("--option", dest="options", action="append", default=[],
+                           metavar="NAME=VALUE", help="further MetaballSplat option (repeatable)")
+    p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
+    p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_cluster_options(p_surface)
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
     return parser
+
+
+def _add_cluster_options(parser) -> None:
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=int, metavar="N",
+                       help="run frames in parallel on a local Dask cluster of N processes")
+    group.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run frames on an existing Dask cluster (tcp://host:port); its "
+                            "workers must see the same paths")
+
+
+def _client(args):
+    """The Dask client the options ask for, or None (serial); one-line errors."""
+    if args.workers is None and args.scheduler is None:
+        return None
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers must be >= 1, got {args.workers}")
+    from .frames import SchedulerError, connect
+
+    try:
+        return connect(scheduler=args.scheduler, workers=args.workers)
+    except (SchedulerError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _close(client) -> None:
+    if client is not None:
+        cluster = getattr(client, "cluster", None)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _report_memory(result) -> None:
+    if result.peak_memory:
+        worst = max(result.peak_memory.values()) / 2**20
+        print(f"peak memory per worker: up to {worst:.0f} MiB over {len(result.peak_memory)} "
+              f"process(es)")
+
+
+def _parse_options(items) -> dict:
+    options = {}
+    for item in items:
+        if "=" not in item:
+            raise UsageError(f"--option takes name=value, got {item!r}")
+        key, text = item.split("=", 1)
+        value: object = text
+        for convert in (int, float):
+            try:
+                value = convert(text)
+                break
+            except ValueError:
+                pass
+        if text.lower() in ("true", "false"):
+            value = text.lower() == "true"
+        options[key.strip().replace("-", "_")] = value
+    return options
+
+
+# -- surface ------------------------------------------------------------------------------------
+def _cmd_surface(args) -> int:
+    from .frames import FramesError, surface_series
+    from .series import SeriesError, read_collection
+
+    try:
+        read_collection(args.particles)
+    except (FileNotFoundError, SeriesError) as exc:
+        raise UsageError(str(exc)) from None
+    options = dict(radius=args.radius, cell_size=args.cell_size, kernel=args.kernel,
+                   smooth_iterations=args.smooth_iterations, **_parse_options(args.options))
+    try:
+        from .surface import surface_stages
+
+        surface_stages(**options)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    out = Path(args.out)
+    _check_writable(out)
+    client = _client(args)
+    try:
+        result = surface_series(args.particles, out / f"{args.name}.pvd", client=client,
+                                resume=args.resume, progress=not args.quiet, **options)
+    except FramesError as exc:
+        print(f"blobflow: {exc}", file=sys.stderr)
+        print(f"blobflow: the frames that succeeded are in {out}; rerun with --resume",
+              file=sys.stderr)
+        return 1
+    finally:
+        _close(client)
+    print(f"wrote {result.path} ({result.computed} frames computed, {result.skipped} kept)")
+    _report_memory(result)
+    return 0
 
 
 # -- list ---------------------------------------------------------------------------------------
@@ -201,8 +311,15 @@ def _cmd_render(args) -> int:
     if out.suffix and out.suffix.lower() not in (".gif", ".mp4"):
         raise UsageError(f"--out must end in .gif or .mp4, or name a folder for PNG files; got {out}")
     _check_writable(out.parent if out.suffix else out)
+    client = _client(args)
     try:
-        if args.turntable:
+        if client is not None:
+            from .render import render_frames
+
+            result = render_frames(paths, out, client=client, turntable_frames=args.turntable,
+                                   time_index=args.time_index, orbit=args.orbit, size=size,
+                                   color_by=args.color_by, fps=args.fps, progress=not args.quiet)
+        elif args.turntable:
             result = turntable(paths, out, frames=args.turntable, time_index=args.time_index,
                                size=size, color_by=args.color_by, fps=args.fps or 24.0,
                                progress=not args.quiet)
@@ -211,6 +328,8 @@ def _cmd_render(args) -> int:
                                fps=args.fps, progress=not args.quiet)
     except (SeriesError, ValueError, IndexError) as exc:
         raise UsageError(str(exc)) from None
+    finally:
+        _close(client)
     print(f"wrote {result}")
     return 0
 
@@ -259,7 +378,7 @@ def main(argv=None) -> int:
     try:
         args = parser.parse_args(argv)
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
-                   "info": _cmd_info}[args.command]
+                   "surface": _cmd_surface, "info": _cmd_info}[args.command]
         return command(args)
     except UsageError as exc:
         print(f"blobflow: error: {exc}", file=sys.stderr)

@@ -113,6 +113,8 @@ class Renderer:
     bounds : sequence of 6 float, optional
         ``(xmin, xmax, ymin, ymax, zmin, zmax)`` (m) to frame instead of the data's bounds, to
         keep the same view for different series.
+    clim : (float, float), optional
+        Colour range for ``color_by`` instead of the range over the frames drawn.
 
     Raises
     ------
@@ -124,7 +126,7 @@ class Renderer:
 
     def __init__(self, series: Sequence, *, size=(640, 480), color_by: str | None = None,
                  floor: bool = True, text: bool = True, frames: Sequence[int] | None = None,
-                 bounds: Sequence[float] | None = None):
+                 bounds: Sequence[float] | None = None, clim: Sequence[float] | None = None):
         if isinstance(series, (str, Path)):
             series = [series]
         if not series:
@@ -139,7 +141,7 @@ class Renderer:
         self.size = (int(size[0]), int(size[1]))
         self.color_by = color_by
         indices = list(range(len(self.times))) if frames is None else list(frames)
-        self._setup(indices, floor, text, bounds)
+        self._setup(indices, floor, text, bounds, clim)
 
     # -- setup ---------------------------------------------------------------------------------
     def _frame(self, layer: _Layer, index: int):
@@ -148,7 +150,7 @@ class Renderer:
         index = min(index, len(layer.entries) - 1)
         return pv.wrap(read_frame(layer.entries[index][1]))
 
-    def _setup(self, indices, floor, text, fixed_bounds):
+    def _setup(self, indices, floor, text, fixed_bounds, fixed_clim):
         bounds = np.array([np.inf, -np.inf] * 3)
         clim = [np.inf, -np.inf]
         for layer in self.layers:
@@ -178,6 +180,8 @@ class Renderer:
         elif not np.isfinite(bounds[0]):
             bounds = np.array([-0.5, 0.5, -0.5, 0.5, 0.0, 1.0])
         self.bounds = bounds
+        if fixed_clim is not None:
+            clim = [float(fixed_clim[0]), float(fixed_clim[1])]
         self.clim = clim if np.isfinite(clim[0]) else None
         if self.clim and self.clim[0] == self.clim[1]:
             self.clim = [self.clim[0], self.clim[0] + 1.0]
@@ -414,3 +418,78 @@ def render_run(series_paths, directory, *, turntable_frames: int = 24, size=(640
         "movie": timelapse(series_paths, directory / "movie.mp4", orbit=90.0, size=size,
                            progress=progress),
     }
+
+
+# -- frame-parallel rendering (serial, or on a Dask cluster) --------------------------------------
+def render_frame_task(series, out_file, time, options) -> None:
+    """Task: draw one image (``options``: index, azimuth, size, color_by, bounds, clim) to PNG."""
+    import imageio.v2 as imageio
+
+    with Renderer(series, size=options["size"], color_by=options["color_by"],
+                  frames=[options["index"]], bounds=options["bounds"],
+                  clim=options["clim"]) as renderer:
+        image = renderer.render(options["index"], options["azimuth"])
+    out_file = Path(out_file)
+    tmp = out_file.with_name(f".{out_file.stem}.tmp.png")
+    imageio.imwrite(tmp, image)
+    os.replace(tmp, out_file)
+
+
+def render_frames(series, out, *, client=None, turntable_frames: int | None = None,
+                  time_index: int = -1, orbit: float = 0.0, size=(640, 480),
+                  color_by: str | None = None, fps: float | None = None,
+                  progress: bool = True) -> Path:
+    """Render a time-lapse (or a turntable) one task per image, here or on a Dask cluster.
+
+    The same images as :func:`timelapse` / :func:`turntable`, drawn by independent tasks (each
+    with its own renderer and the camera framed from all the frames), so a cluster can draw them
+    in parallel; the result is byte-identical either way.  See :func:`timelapse` for the
+    parameters; ``client`` is a ``dask.distributed.Client`` or ``None`` (serial).
+
+    Raises
+    ------
+    pipeline.frames.FramesError
+        If some images failed on every attempt.
+    """
+    import imageio.v2 as imageio
+
+    from .frames import FramesError, run_tasks
+
+    series = [str(Path(p)) for p in ([series] if isinstance(series, (str, Path)) else series)]
+    out = Path(out)
+    if turntable_frames is not None:
+        frames = [time_index]
+    else:
+        frames = None
+    with Renderer(series, size=size, color_by=color_by, frames=frames, floor=False,
+                  text=False) as probe:
+        bounds, clim, times = probe.bounds.tolist(), probe.clim, probe.times
+    n = len(times)
+    if turntable_frames is not None:
+        views = [(time_index % max(n, 1), 360.0 * k / (turntable_frames - 1))
+                 for k in range(turntable_frames)]
+        fps = fps or 24.0
+    else:
+        views = [(i, orbit * i / max(n - 1, 1)) for i in range(max(n, 1))]
+        if fps is None:
+            fps = 1.0 / float(np.diff(times).mean()) if n > 1 else 24.0
+    movie = out.suffix.lower() in MOVIE_SUFFIXES
+    folder = out.with_name(f".{out.stem}.frames") if movie else out
+    folder.mkdir(parents=True, exist_ok=True)
+    jobs = []
+    for k, (index, azimuth) in enumerate(views):
+        options = {"index": index, "azimuth": azimuth, "size": tuple(size), "color_by": color_by,
+                   "bounds": bounds, "clim": clim}
+        t = float(times[index]) if n else 0.0
+        jobs.append((k, t, (render_frame_task, series, str(folder / f"frame_{k:04d}.png"), t, options)))
+    _, failures = run_tasks(jobs, client=client, progress=progress, desc="render")
+    if failures:
+        raise FramesError(failures, out)
+    if movie:
+        pngs = [folder / f"frame_{k:04d}.png" for k in range(len(views))]
+        write_movie((imageio.imread(p) for p in pngs), out, fps=fps, count=len(pngs),
+                    progress=False)
+        for p in pngs:
+            p.unlink()
+        folder.rmdir()
+    return out

@@ -39,6 +39,8 @@ __all__ = [
     "read_frame",
     "export_xdmf",
     "check_finite_dataset",
+    "write_frame",
+    "frame_extension",
 ]
 
 _WRITERS = {
@@ -88,6 +90,38 @@ def check_finite_dataset(data: vtkDataObject, what: str = "dataset") -> None:
         values = numpy_support.vtk_to_numpy(array)
         if np.issubdtype(values.dtype, np.floating) and not np.isfinite(values).all():
             raise ValueError(f"refusing to write {what}: {name} holds NaN or infinite values")
+
+
+def frame_extension(data: vtkDataObject) -> str:
+    """The XML file extension of ``data``'s type (``.vtp``, ``.vtu`` or ``.vti``)."""
+    cls = data.GetClassName()
+    if cls not in _WRITERS:
+        raise TypeError(f"cannot write {cls} as a series frame; supported: {sorted(_WRITERS)}")
+    return _WRITERS[cls][0]
+
+
+def write_frame(data: vtkDataObject, path) -> Path:
+    """Write one dataset as a VTK XML file, atomically (temporary file, then rename).
+
+    Appended raw data, zlib compression, UInt64 headers; refuses non-finite values.
+    """
+    path = Path(path)
+    frame_extension(data)
+    check_finite_dataset(data, str(path))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    writer = _WRITERS[data.GetClassName()][1]()
+    writer.SetInputData(data)
+    writer.SetFileName(str(tmp))
+    writer.SetDataModeToAppended()
+    writer.EncodeAppendedDataOff()
+    writer.SetCompressorTypeToZLib()
+    writer.SetHeaderTypeToUInt64()
+    if writer.Write() != 1 or writer.GetErrorCode() != 0:
+        tmp.unlink(missing_ok=True)
+        raise OSError(f"VTK could not write {path}")
+    os.replace(tmp, path)
+    return path
 
 
 class SeriesWriter:
@@ -170,25 +204,32 @@ class SeriesWriter:
         if self._fresh:
             self._clear_stale()
         self._class = cls
-        ext, writer_class = _WRITERS[cls]
-        self.frames_dir.mkdir(parents=True, exist_ok=True)
+        ext = _WRITERS[cls][0]
         file_name = f"{self.name}_{len(self.entries):06d}{ext}"
-        final = self.frames_dir / file_name
-        tmp = self.frames_dir / f".{file_name}.tmp"
-        writer = writer_class()
-        writer.SetInputData(data)
-        writer.SetFileName(str(tmp))
-        writer.SetDataModeToAppended()
-        writer.EncodeAppendedDataOff()
-        writer.SetCompressorTypeToZLib()
-        writer.SetHeaderTypeToUInt64()
-        if writer.Write() != 1 or writer.GetErrorCode() != 0:
-            tmp.unlink(missing_ok=True)
-            raise OSError(f"VTK could not write {final}")
-        os.replace(tmp, final)
+        final = write_frame(data, self.frames_dir / file_name)
         self.entries.append((time, f"{self.name}/{file_name}"))
         self._write_collections()
         return final
+
+    @classmethod
+    def from_files(cls, path, entries) -> "SeriesWriter":
+        """Write the collection files for frames already on disk and return the writer.
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.pvd`` file; frames must be in its folder ``NAME/``.
+        entries : list of (float, str)
+            Time and path relative to the collection's folder of every frame, in order.
+        """
+        writer = cls(path, resume=False)
+        writer._fresh = False
+        writer.entries = [(float(t), str(name)) for t, name in entries]
+        if writer.entries:
+            ext = Path(writer.entries[0][1]).suffix
+            writer._class = next(c for c, (e, _) in _WRITERS.items() if e == ext)
+        writer._write_collections()
+        return writer
 
     def _write_collections(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,299 @@
+"""Frame-parallel work on a written series: serially, or on a Dask cluster.
+
+A simulation runs forward in time on one machine, but turning its particle frames into surfaces, or
+rendering them, is one independent task per frame.  :func:`map_frames` runs such tasks in order
+here, or on a ``dask.distributed`` cluster (an existing one, or a ``LocalCluster``) when given a
+client, and:
+
+* writes every frame atomically, so a frame on disk is always complete;
+* writes the collection file (``.pvd`` + ``.series``) once, after every frame is done;
+* lets Dask retry a failed task, reports a frame that fails twice by number with its error, and
+  leaves the frames that succeeded on disk, so ``resume=True`` only does what is missing;
+* produces byte-identical files whether it runs serially or in parallel (the tasks are
+  deterministic and each one writes its own file).
+
+Dask is optional (``pip install blobflow[dask]``): nothing here imports it unless a client or a
+cluster is asked for.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import socket
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from .series import SeriesWriter, read_collection, read_frame, write_frame
+
+__all__ = [
+    "FrameFailure",
+    "FramesError",
+    "FramesResult",
+    "map_frames",
+    "run_tasks",
+    "surface_series",
+    "surface_frame",
+    "connect",
+    "SchedulerError",
+]
+
+
+class SchedulerError(RuntimeError):
+    """The Dask scheduler cannot be reached, or Dask is not installed."""
+
+
+@dataclass(frozen=True)
+class FrameFailure:
+    """A frame whose task failed on every attempt."""
+
+    index: int
+    time: float
+    error: str
+
+
+class FramesError(RuntimeError):
+    """Some frames failed; the others are on disk and ``resume=True`` retries only the failed."""
+
+    def __init__(self, failures: list[FrameFailure], output: Path):
+        self.failures = failures
+        self.output = output
+        listed = "; ".join(f"frame {f.index} (t = {f.time:g} s): {f.error}" for f in failures[:5])
+        more = f"; and {len(failures) - 5} more" if len(failures) > 5 else ""
+        super().__init__(f"{len(failures)} frame(s) failed: {listed}{more}")
+
+
+@dataclass
+class FramesResult:
+    """What :func:`map_frames` did.
+
+    Attributes
+    ----------
+    path : Path
+        The collection written.
+    computed, skipped : int
+        Frames computed now, and frames already on disk (``resume``).
+    peak_memory : dict of str to int
+        Peak resident memory (bytes) of every process that ran a task, by ``host:pid``.
+    """
+
+    path: Path
+    computed: int = 0
+    skipped: int = 0
+    peak_memory: dict = field(default_factory=dict)
+
+
+def _peak_rss() -> int:
+    # ru_maxrss is in KiB on Linux.
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def _frame_done(path: Path) -> bool:
+    if not path.is_file():
+        return False
+    try:
+        read_frame(path)
+        return True
+    except Exception:  # noqa: BLE001 - an unreadable frame is simply redone
+        return False
+
+
+def _run_task(task, in_file: str, out_file: str, time: float, options: dict) -> dict:
+    """Run one frame's task in this process; return who ran it and its peak memory."""
+    task(in_file, out_file, time, options)
+    return {"worker": f"{socket.gethostname()}:{os.getpid()}", "peak_rss": _peak_rss()}
+
+
+def connect(scheduler: str | None = None, workers: int | None = None):
+    """A Dask client: to ``scheduler`` (``tcp://host:port``), or to a new ``LocalCluster``.
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of an existing scheduler; its workers must see the same file paths.
+    workers : int, optional
+        Start a local cluster of this many single-threaded worker processes.
+
+    Raises
+    ------
+    SchedulerError
+        If Dask is not installed or the scheduler does not answer within 10 s.
+    ValueError
+        For ``workers < 1`` or both arguments.
+    """
+    if scheduler is not None and workers is not None:
+        raise ValueError("give either scheduler or workers, not both")
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise SchedulerError("Dask is not installed: pip install 'blobflow[dask]'") from None
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    # One thread per worker process; Numba's own threads pinned to one so that N workers use N
+    # cores instead of fighting over them.
+    cluster = LocalCluster(n_workers=workers or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", host="127.0.0.1",
+                           env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+                                "OPENBLAS_NUM_THREADS": "1"})
+    return Client(cluster)
+
+
+def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, desc: str = "frames",
+              total: int | None = None, initial: int = 0):
+    """Run ``_run_task(*args)`` for every ``(index, time, args)`` job, here or on ``client``.
+
+    Returns
+    -------
+    infos : list of dict
+        What each successful task returned (who ran it, its peak memory).
+    failures : list of FrameFailure
+        Jobs that failed on every attempt, by index.
+    """
+    infos, failures = [], []
+    bar = tqdm(total=total if total is not None else len(jobs), initial=initial, unit="frame",
+               disable=not progress, desc=desc)
+    try:
+        if client is None:
+            for i, t, args in jobs:
+                for attempt in range(retries + 1):
+                    try:
+                        infos.append(_run_task(*args))
+                        bar.update(1)
+                        break
+                    except Exception as exc:  # noqa: BLE001 - reported per frame
+                        if attempt == retries:
+                            failures.append(FrameFailure(i, t, f"{type(exc).__name__}: {exc}"))
+        else:
+            from dask.distributed import as_completed
+
+            token = uuid.uuid4().hex[:8]  # unique keys: Dask would reuse an equal key's result
+            futures = {client.submit(_run_task, *args, retries=retries, pure=False,
+                                     key=f"{desc}-{i}-{token}"): (i, t) for i, t, args in jobs}
+            for future in as_completed(futures):
+                i, t = futures[future]
+                if future.status == "finished":
+                    infos.append(future.result())
+                    bar.update(1)
+                else:
+                    exc = future.exception()
+                    failures.append(FrameFailure(i, t, f"{type(exc).__name__}: {exc}"))
+    finally:
+        bar.close()
+    return infos, sorted(failures, key=lambda f: f.index)
+
+
+def map_frames(input_path, output_path, task, options: dict | None = None, *, client=None,
+               resume: bool = False, progress: bool = True, retries: int = 1,
+               extension: str = ".vtp") -> FramesResult:
+    """Run ``task`` on every frame of a series and write the results as a new series.
+
+    Parameters
+    ----------
+    input_path : str or Path
+        A ``.pvd`` or ``.series`` collection.
+    output_path : str or Path
+        The ``.pvd`` to write; frames go to its folder ``NAME/NAME_%06d.EXT``.
+    task : callable
+        ``task(in_file, out_file, time, options)``, importable by name (Dask pickles it): reads
+        ``in_file``, writes ``out_file`` atomically (e.g. with :func:`pipeline.series.write_frame`).
+    options : dict, optional
+        Passed to every task.
+    client : dask.distributed.Client, optional
+        Run on this cluster; serially here when omitted.
+    resume : bool
+        Skip frames already on disk and readable.
+    retries : int
+        Extra attempts for a failed task (Dask's ``retries``; done here when serial).
+    extension : str
+        Extension of the frames the task writes.
+
+    Raises
+    ------
+    FramesError
+        If some frames failed on every attempt; the successful frames stay on disk and no
+        collection file is written.
+    """
+    input_path = Path(input_path)
+    output_path = Path(output_path)
+    if output_path.suffix != ".pvd":
+        raise ValueError(f"output_path must end in .pvd, got {str(output_path)!r}")
+    options = dict(options or {})
+    entries = read_collection(input_path)
+    name = output_path.stem
+    frames_dir = output_path.parent / name
+    jobs, done_entries = [], []
+    result = FramesResult(output_path)
+    for i, (t, rel) in enumerate(entries):
+        out_rel = f"{name}/{name}_{i:06d}{extension}"
+        out_file = output_path.parent / out_rel
+        done_entries.append((t, out_rel))
+        if resume and _frame_done(out_file):
+            result.skipped += 1
+            continue
+        jobs.append((i, t, str(input_path.parent / rel), str(out_file)))
+    frames_dir.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        # A fresh run must not leave another run's frames beside its own.
+        keep = {Path(rel).name for _, rel in done_entries}
+        for f in frames_dir.iterdir():
+            if f.name.startswith(f"{name}_") and f.name not in keep:
+                f.unlink()
+
+    infos, failures = run_tasks(
+        [(i, t, (task, in_file, out_file, t, options)) for i, t, in_file, out_file in jobs],
+        client=client, retries=retries, progress=progress, desc=name, total=len(entries),
+        initial=result.skipped)
+    result.computed = len(infos)
+    for info in infos:
+        key = info["worker"]
+        result.peak_memory[key] = max(result.peak_memory.get(key, 0), info["peak_rss"])
+    if failures:
+        raise FramesError(sorted(failures, key=lambda f: f.index), output_path)
+    SeriesWriter.from_files(output_path, done_entries)
+    return result
+
+
+# -- surface reconstruction of a particle series --------------------------------------------------
+def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> None:
+    """Task: read one particle frame, reconstruct its surface, write it (``.vtp``)."""
+    from .convert import set_time
+    from .surface import surface_stages
+
+    particles = read_frame(in_file)
+    stages = surface_stages(**options)
+    stages[0].SetInputDataObject(0, particles)
+    for upstream, downstream in zip(stages, stages[1:]):
+        downstream.SetInputConnection(0, upstream.GetOutputPort(0))
+    stages[-1].Update()
+    for stage in stages:
+        error = getattr(stage, "pending_error", None)
+        if error is not None:
+            raise error
+    surface = stages[-1].GetOutputDataObject(0)
+    copy = surface.NewInstance()
+    copy.ShallowCopy(surface)
+    set_time(copy, time)
+    write_frame(copy, out_file)
+
+
+def surface_series(particles_path, output_path, *, client=None, resume: bool = False,
+                   progress: bool = True, **surface_options) -> FramesResult:
+    """Reconstruct the surface of every frame of a particle series.
+
+    ``surface_options`` are those of :func:`pipeline.surface.surface_stages` (``radius``,
+    ``cell_size``, ``kernel``, ``smooth_iterations``, ...).  See :func:`map_frames` for
+    ``client`` and ``resume``.
+    """
+    from .surface import surface_stages
+
+    surface_stages(**surface_options)  # validate the options here, before any task runs
+    return map_frames(particles_path, output_path, surface_frame, surface_options, client=client,
+                      resume=resume, progress=progress)
