@@ -190,7 +190,11 @@ def _cmd_list(args) -> int:
         return 0
     width = max(map(len, names))
     for name in names:
-        scene = load_scene(name)
+        try:
+            scene = load_scene(name)
+        except Exception as exc:  # noqa: BLE001 - one broken scene must not hide the others
+            print(f"{name:<{width}}  (cannot be loaded: {type(exc).__name__}: {exc})")
+            continue
         print(f"{name:<{width}}  {scene.description}")
         if args.verbose:
             for p in scene.parameters.values():
