@@ -1,0 +1,629 @@
+"""Time integrators for particle systems: explicit, symplectic, linearised and full backward Euler.
+
+Every scheme has the same shape::
+
+    info = scheme(system, state, h, **options)
+
+``system`` supplies forces, energies and the implicit system matrix (see
+:class:`filters.springs.SpringSystem`, whose interface this module relies on: ``masses``,
+``inv_mass``, ``pinned``, ``forces(x, v)``, ``conservative_forces(x)``,
+``damping_forces(xdir, v)``, ``potential_energy(x)``, ``system_matrix(x, xdir, h)``).
+``state`` is anything with ``positions`` and ``velocities`` (N, 3) float64 arrays (a
+:class:`filters.simulation.State`), advanced by one step ``h`` (s) **in place**; an optional
+``state.extra`` dict keeps the warm start of the iterative solver, so that a checkpointed state
+resumes bit-identically.  Each scheme returns a :class:`StepInfo`.
+
+Schemes
+-------
+* :func:`forward_euler` — ``x += h v; v += h f(x, v) / m``.  Energy of an undamped oscillator grows
+  by ``(1 + h^2 w^2)`` per step.
+* :func:`symplectic_euler` — ``v += h f(x, v) / m; x += h v``.  Bounded energy error, unstable
+  for ``h w > 2``.
+* :func:`linearized_backward_euler` — one Newton step of backward Euler (Baraff & Witkin 1998,
+  "Large steps in cloth simulation"):
+  ``(M - h df/dv - h^2 df/dx) dv = h (f0 + h df/dx v0)``.
+* :func:`backward_euler` — backward Euler solved by Newton's method with a backtracking line
+  search on the incremental potential (Gast, Schroeder, Stomakhin, Jiang & Teran 2015,
+  "Optimization integrator for large time steps", IEEE TVCG)::
+
+      E(dx) = |dx - h v|_M^2 / (2 h^2) + U(x + dx) + dx^T C dx / (2 h)
+
+  whose minimiser is the backward Euler step; every accepted iterate lowers ``E``, so the step
+  cannot gain energy.  Axial damping directions are frozen at the start of the step so that the
+  damping term is a true (quadratic) dissipation potential.  The robust default.
+* :func:`implicit_advection` — the first-order form for particles advected by a velocity field
+  ``dx/dt = v(x)``: ``(I - h dv/dx) dx = h v(x^n)`` (one linearised backward Euler step; the seed's
+  slide dropped the ``h`` in front of the Jacobian).
+
+Linear solves
+-------------
+``solver="pcg"``: block-Jacobi-preconditioned conjugate gradients in Numba on the CSR matrix, warm
+started from the previous step's solution; ``solver="direct"``: SuperLU (``scipy.sparse.linalg``)
+with a minimum-degree ordering on ``A + A^T``; ``solver="auto"``: PCG, falling back to the direct
+solve when PCG does not converge in ``pcg_max_iter`` iterations.  The choice was made with
+``benchmarks/bench_springs.py`` (see ``benchmarks/results/springs.json``).  Pinned particles are
+eliminated: their rows and columns are replaced by the identity with a zero right-hand side.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from .validation import check_choice, check_int, check_range
+
+__all__ = [
+    "StepInfo",
+    "SCHEMES",
+    "SOLVERS",
+    "forward_euler",
+    "symplectic_euler",
+    "linearized_backward_euler",
+    "backward_euler",
+    "implicit_advection",
+    "pcg",
+    "solve_linear",
+    "integrate",
+]
+
+SOLVERS = ("auto", "pcg", "direct")
+
+
+@dataclass
+class StepInfo:
+    """What one integration step did.
+
+    Attributes
+    ----------
+    newton_iterations : int
+        Newton iterations (0 for explicit schemes, 1 for the linearised one).
+    linear_iterations : int
+        Total PCG iterations over the step (0 for direct solves).
+    direct_solves : int
+        Number of sparse direct factorisations.
+    line_search_halvings : int
+        Total step halvings of the line search.
+    residual : float
+        Final Newton step size ``max |d| / h`` (m/s), or 0 for explicit schemes.
+    """
+
+    newton_iterations: int = 0
+    linear_iterations: int = 0
+    direct_solves: int = 0
+    line_search_halvings: int = 0
+    residual: float = 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Linear algebra in Numba
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _spmv(indptr, indices, data, x, y):
+    for r in range(indptr.shape[0] - 1):
+        acc = 0.0
+        for p in range(indptr[r], indptr[r + 1]):
+            acc += data[p] * x[indices[p]]
+        y[r] = acc
+
+
+@njit(cache=True)
+def _dot(a, b):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@njit(cache=True)
+def _block_jacobi(indptr, indices, data, block):
+    """Inverse diagonal blocks (n/block, block, block) of a CSR matrix (block 1 or 3)."""
+    n = indptr.shape[0] - 1
+    nb = n // block
+    inv = np.zeros((nb, block, block))
+    for i in range(nb):
+        a = np.zeros((block, block))
+        for r in range(block):
+            row = i * block + r
+            for p in range(indptr[row], indptr[row + 1]):
+                c = indices[p] - i * block
+                if 0 <= c < block:
+                    a[r, c] = data[p]
+        if block == 1:
+            inv[i, 0, 0] = 1.0 / a[0, 0] if a[0, 0] > 0.0 else 1.0
+        else:
+            c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+            c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+            c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+            det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+            if det <= 0.0:
+                for r in range(3):
+                    inv[i, r, r] = 1.0 / a[r, r] if a[r, r] > 0.0 else 1.0
+                continue
+            d = 1.0 / det
+            inv[i, 0, 0] = c00 * d
+            inv[i, 1, 0] = c01 * d
+            inv[i, 2, 0] = c02 * d
+            inv[i, 0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) * d
+            inv[i, 1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) * d
+            inv[i, 2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) * d
+            inv[i, 0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) * d
+            inv[i, 1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) * d
+            inv[i, 2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) * d
+    return inv
+
+
+@njit(cache=True)
+def _precondition(inv, r_vec, z):
+    block = inv.shape[1]
+    rr = 0.0
+    rz = 0.0
+    for i in range(inv.shape[0]):
+        for p in range(block):
+            acc = 0.0
+            for q in range(block):
+                acc += inv[i, p, q] * r_vec[i * block + q]
+            z[i * block + p] = acc
+            rr += r_vec[i * block + p] * r_vec[i * block + p]
+            rz += r_vec[i * block + p] * acc
+    return rr, rz
+
+
+@njit(cache=True)
+def _pcg(indptr, indices, data, b, x, tol, max_iter, block):
+    """Block-Jacobi PCG for SPD ``A x = b``; ``x`` holds the warm start and the result.
+
+    The preconditioner inverts the ``block`` x ``block`` diagonal blocks (3: one per particle,
+    which captures the anisotropy of the springs at a particle; 1: plain Jacobi).  Serial on
+    purpose: thousands of tiny parallel regions per solve lose to one thread on a busy machine
+    (a descheduled worker stalls every barrier).  Stops when ``|r| <= tol |b|``.  Returns
+    (iterations, relative residual).
+    """
+    n = b.shape[0]
+    inv = _block_jacobi(indptr, indices, data, block)
+    r_vec = np.empty(n)
+    _spmv(indptr, indices, data, x, r_vec)
+    for i in range(n):
+        r_vec[i] = b[i] - r_vec[i]
+    bnorm = math.sqrt(_dot(b, b))
+    if bnorm == 0.0:
+        for i in range(n):
+            x[i] = 0.0
+        return 0, 0.0
+    z = np.empty(n)
+    rr, rz = _precondition(inv, r_vec, z)
+    p_vec = z.copy()
+    ap = np.empty(n)
+    rnorm = math.sqrt(rr)
+    it = 0
+    while rnorm > tol * bnorm and it < max_iter:
+        _spmv(indptr, indices, data, p_vec, ap)
+        pap = _dot(p_vec, ap)
+        if pap <= 0.0:
+            break
+        alpha = rz / pap
+        for i in range(n):
+            x[i] += alpha * p_vec[i]
+            r_vec[i] -= alpha * ap[i]
+        rr, rz_new = _precondition(inv, r_vec, z)
+        rnorm = math.sqrt(rr)
+        beta = rz_new / rz
+        rz = rz_new
+        _update_p(p_vec, z, beta)
+        it += 1
+    return it, rnorm / bnorm
+
+
+@njit(cache=True)
+def _update_p(p_vec, z, beta):
+    for i in range(p_vec.shape[0]):
+        p_vec[i] = z[i] + beta * p_vec[i]
+
+
+def pcg(matrix, b, x0=None, *, tol=1e-6, max_iter=1000, block=None):
+    """Solve the SPD system ``matrix @ x = b`` by block-Jacobi-preconditioned CG in Numba.
+
+    Parameters
+    ----------
+    matrix : scipy.sparse.csr_matrix, (n, n)
+        Symmetric positive definite matrix.
+    b : (n,) float64 array
+        Right-hand side.
+    x0 : (n,) float64 array, optional
+        Warm start (zeros if omitted); not modified.
+    tol : float
+        Relative residual ``|b - A x| / |b|`` to reach.
+    max_iter : int
+        Iteration limit.
+    block : {1, 3}, optional
+        Size of the diagonal blocks the preconditioner inverts; 3 (per particle) when ``n`` is a
+        multiple of 3, else 1 (Jacobi).
+
+    Returns
+    -------
+    x : (n,) float64 array
+    iterations : int
+    relative_residual : float
+    """
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64, copy=True)
+    if block is None:
+        block = 3 if b.shape[0] % 3 == 0 else 1
+    if block not in (1, 3) or b.shape[0] % block:
+        raise ValueError(f"block must be 1 or 3 and divide n = {b.shape[0]}, got {block!r}")
+    it, res = _pcg(matrix.indptr, matrix.indices, matrix.data, b, x, float(tol), int(max_iter),
+                   int(block))
+    return x, int(it), float(res)
+
+
+def _direct(matrix, b):
+    from scipy.sparse.linalg import splu
+
+    lu = splu(matrix.tocsc(), permc_spec="MMD_AT_PLUS_A",
+              options={"SymmetricMode": True, "DiagPivotThresh": 0.0})
+    return lu.solve(b)
+
+
+def solve_linear(matrix, b, x0=None, *, solver="auto", tol=1e-6, max_iter=1000):
+    """Solve ``matrix @ x = b`` with the chosen solver.
+
+    Parameters
+    ----------
+    matrix : scipy.sparse.csr_matrix
+        SPD system matrix.
+    b : (n,) float64 array
+        Right-hand side.
+    x0 : (n,) float64 array, optional
+        Warm start for PCG.
+    solver : {"auto", "pcg", "direct"}
+        ``"auto"`` runs PCG and falls back to the direct solve if it has not converged.
+    tol, max_iter : float, int
+        PCG relative tolerance and iteration limit.
+
+    Returns
+    -------
+    x : (n,) float64 array
+    iterations : int
+        PCG iterations (including those of a PCG attempt before a fallback).
+    direct : bool
+        Whether a direct solve produced ``x``.
+    """
+    check_choice("solver", solver, SOLVERS)
+    if solver == "direct":
+        return _direct(matrix, b), 0, True
+    x, it, res = pcg(matrix, b, x0, tol=tol, max_iter=max_iter)
+    if res <= tol or solver == "pcg":
+        return x, it, False
+    return _direct(matrix, b), it, True
+
+
+# ---------------------------------------------------------------------------------------------
+# Small helpers
+# ---------------------------------------------------------------------------------------------
+@njit(parallel=True, cache=True)
+def _incremental_potential_parts(dx, v, masses, h):
+    acc = 0.0
+    for i in prange(dx.shape[0]):
+        for k in range(3):
+            t = dx[i, k] - h * v[i, k]
+            acc += masses[i] * t * t
+    return 0.5 * acc / (h * h)
+
+
+def _extra(state):
+    extra = getattr(state, "extra", None)
+    return extra if isinstance(extra, dict) else None
+
+
+def _check_h(h):
+    return check_range("h", h, 0.0, math.inf, low_inclusive=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# Explicit schemes
+# ---------------------------------------------------------------------------------------------
+def forward_euler(system, state, h):
+    """Forward (explicit) Euler: ``x += h v; v += h f(x, v) / m``, in place.
+
+    Parameters
+    ----------
+    system : SpringSystem-like
+        Supplies ``forces(x, v)`` (N) and ``inv_mass`` (1/kg, 0 for pinned particles).
+    state : State-like
+        ``positions`` (m) and ``velocities`` (m/s), (N, 3), advanced in place.
+    h : float
+        Time step (s), > 0.
+
+    Returns
+    -------
+    StepInfo
+    """
+    h = _check_h(h)
+    x, v = state.positions, state.velocities
+    f = system.forces(x, v)
+    x += h * v
+    v += h * f * system.inv_mass[:, None]
+    return StepInfo()
+
+
+def symplectic_euler(system, state, h):
+    """Symplectic (semi-implicit) Euler: ``v += h f(x, v) / m; x += h v``, in place.
+
+    Uses the system's fused Numba kernel when it has one (``symplectic_step``).
+    Arguments as in :func:`forward_euler`.
+    """
+    h = _check_h(h)
+    x, v = state.positions, state.velocities
+    if hasattr(system, "symplectic_step"):
+        system.symplectic_step(x, v, h)
+    else:  # pragma: no cover - generic systems
+        v += h * system.forces(x, v) * system.inv_mass[:, None]
+        x += h * v
+    return StepInfo()
+
+
+# ---------------------------------------------------------------------------------------------
+# Implicit schemes
+# ---------------------------------------------------------------------------------------------
+def _warm(state, key, n):
+    extra = _extra(state)
+    if extra is not None and key in extra and extra[key].size == n:
+        return np.array(extra[key], dtype=np.float64).ravel()
+    return None
+
+
+def _store_warm(state, key, value):
+    extra = _extra(state)
+    if extra is not None:
+        extra[key] = value.reshape(-1, 3).copy()
+
+
+def linearized_backward_euler(system, state, h, *, solver="auto", tol=1e-6, max_iter=1000):
+    """One Newton step of backward Euler (Baraff & Witkin 1998), in place.
+
+    Solves ``(M/h^2 + C/h + K) dv = (f0 - h K v0) / h`` with ``K = -df/dx`` (made definite) and
+    ``C = -df/dv`` at the start of the step, then ``v += dv; x += h v``.  Cheap (one solve) but,
+    on a flat cloth released under gravity, unstable above ``h ~ 0.012`` s: the first solve
+    sees no transverse stiffness.  Use :func:`backward_euler` for large steps.
+
+    Parameters
+    ----------
+    system, state, h
+        As in :func:`forward_euler`.
+    solver : {"auto", "pcg", "direct"}
+        Linear solver (see :func:`solve_linear`).
+    tol, max_iter : float, int
+        PCG tolerance and iteration limit.
+
+    Returns
+    -------
+    StepInfo
+    """
+    h = _check_h(h)
+    x, v = state.positions, state.velocities
+    n = x.shape[0]
+    f0 = system.forces(x, v)
+    mat = system.system_matrix(x, x, h)
+    # K v0 = -(df/dx) v0 = H v0 - (M/h^2 + C/h) v0 on free particles; compute it from the matrix.
+    kv = (mat @ v.ravel()).reshape(n, 3)
+    kv -= (system.masses[:, None] / (h * h)) * v
+    kv += system.damping_forces(x, v) / h
+    rhs = (f0 - h * kv) / h
+    rhs[system.pinned] = 0.0
+    dv, it, direct = solve_linear(mat, rhs.ravel(), _warm(state, "lbe_warm", 3 * n),
+                                  solver=solver, tol=tol, max_iter=max_iter)
+    _store_warm(state, "lbe_warm", dv)
+    v += dv.reshape(n, 3)
+    v[system.pinned] = 0.0
+    x += h * v
+    return StepInfo(newton_iterations=1, linear_iterations=it, direct_solves=int(direct))
+
+
+def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newton=20,
+                   tol=1e-3, max_iter=1000, callback=None):
+    """Backward Euler by Newton iterations with a line search on the incremental potential.
+
+    Minimises ``E(dx) = |dx - h v|_M^2/(2h^2) + U(x + dx) + dx^T C dx/(2h)`` over the position
+    increment ``dx`` (Gast et al. 2015), with ``U`` the elastic plus gravitational potential and
+    ``C`` the damping matrix with directions frozen at the start of the step.  Newton directions
+    solve ``(M/h^2 + K(x + dx) + C/h) d = -grad E`` with ``K`` made definite, so every ``d`` is a
+    descent direction; a backtracking (Armijo) line search accepts only decreases of ``E``.
+    Then ``v = dx / h``, ``x += dx``.
+
+    Parameters
+    ----------
+    system, state, h
+        As in :func:`forward_euler`.
+    solver : {"auto", "pcg", "direct"}
+        Linear solver for the Newton directions (see :func:`solve_linear`).
+    newton_tol : float
+        Stop when ``max |d| / h`` (m/s) falls below this (1 mm/s by default: well below what
+        an animation shows, and 2x fewer Newton iterations than 1e-5 on the benchmark cloth).
+    max_newton : int
+        Newton iteration limit.
+    tol, max_iter : float, int
+        PCG relative tolerance (inexact Newton) and iteration limit per solve.
+    callback : callable, optional
+        Called after every Newton iteration as ``callback(iteration, step_norm, potential)``.
+
+    Returns
+    -------
+    StepInfo
+    """
+    h = _check_h(h)
+    check_range("newton_tol", newton_tol, 0.0, math.inf, low_inclusive=False)
+    check_int("max_newton", max_newton, 1)
+    x0, v = state.positions, state.velocities
+    n = x0.shape[0]
+    m = system.masses
+    pinned = system.pinned
+    free = ~pinned
+
+    def potential(dx):
+        e = _incremental_potential_parts(dx, v_free, m, h)
+        e += system.potential_energy(x0 + dx)
+        e -= 0.5 / h * float(np.vdot(dx, system.damping_forces(x0, dx)))
+        return e
+
+    def gradient(dx):
+        g = m[:, None] * (dx - h * v_free) / (h * h)
+        g -= system.conservative_forces(x0 + dx)
+        g -= system.damping_forces(x0, dx) / h
+        g[pinned] = 0.0
+        return g
+
+    v_free = v.copy()
+    v_free[pinned] = 0.0
+    # Start from the better of the inertial guess h v and the free-fall guess h v + h^2 g.
+    dx = h * v_free
+    e = potential(dx)
+    trial = dx + (h * h) * np.where(free[:, None], system.gravity[None, :], 0.0)
+    e_trial = potential(trial)
+    if e_trial < e:
+        dx, e = trial, e_trial
+    info = StepInfo()
+    warm = _warm(state, "newton_warm", 3 * n)
+    first_direction = None
+    for it in range(max_newton):
+        g = gradient(dx)
+        mat = system.system_matrix(x0 + dx, x0, h)
+        d, lin_it, direct = solve_linear(mat, -g.ravel(), warm, solver=solver, tol=tol,
+                                         max_iter=max_iter)
+        info.linear_iterations += lin_it
+        info.direct_solves += int(direct)
+        info.newton_iterations = it + 1
+        d = d.reshape(n, 3)
+        d[pinned] = 0.0
+        if first_direction is None:
+            first_direction = d.copy()
+        warm = None
+        slope = float(np.vdot(g, d))
+        step_norm = float(np.abs(d).max()) / h if d.size else 0.0
+        info.residual = step_norm
+        if slope >= 0.0:  # not a descent direction (inexact solve): steepest descent instead
+            d = -g / (m[:, None] / (h * h))
+            slope = float(np.vdot(g, d))
+        alpha = 1.0
+        accepted = False
+        for _ in range(40):
+            trial = dx + alpha * d
+            e_trial = potential(trial)
+            if e_trial <= e + 1e-4 * alpha * slope:
+                accepted = True
+                break
+            alpha *= 0.5
+            info.line_search_halvings += 1
+        if not accepted:
+            break  # no decrease possible: converged to round-off
+        dx, e = trial, e_trial
+        if callback is not None:
+            callback(it, step_norm * alpha, e)
+        if step_norm * alpha < newton_tol:
+            break
+    if first_direction is not None:
+        _store_warm(state, "newton_warm", first_direction)
+    x0 += dx
+    v[:] = dx / h
+    v[pinned] = 0.0
+    return info
+
+
+# ---------------------------------------------------------------------------------------------
+# First-order (velocity field) form
+# ---------------------------------------------------------------------------------------------
+@njit(parallel=True, cache=True)
+def _implicit_advection(v, jac, h, dx):
+    for i in prange(v.shape[0]):
+        a = np.empty((3, 3))
+        for p in range(3):
+            for q in range(3):
+                a[p, q] = -h * jac[i, p, q]
+            a[p, p] += 1.0
+        # Cramer's rule on the 3x3 system a dx = h v.
+        c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+        c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+        c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+        det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+        b0 = h * v[i, 0]
+        b1 = h * v[i, 1]
+        b2 = h * v[i, 2]
+        inv = 1.0 / det
+        dx[i, 0] = inv * (b0 * c00 + b1 * (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2])
+                          + b2 * (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]))
+        dx[i, 1] = inv * (b0 * c01 + b1 * (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0])
+                          + b2 * (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]))
+        dx[i, 2] = inv * (b0 * c02 + b1 * (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1])
+                          + b2 * (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]))
+
+
+def implicit_advection(positions, velocity, jacobian, h):
+    """Linearised backward Euler for particles in a velocity field ``dx/dt = v(x)``.
+
+    Solves ``(I - h dv/dx) dx = h v(x^n)`` per particle (3x3 systems in Numba).  For a linear
+    field ``v = A x`` this is exactly backward Euler, ``x^{n+1} = (I - h A)^{-1} x^n``.
+
+    Parameters
+    ----------
+    positions : (N, 3) array_like
+        Particle positions ``x^n`` (m).
+    velocity : (N, 3) array_like
+        Field velocity ``v(x^n)`` (m/s) at the particles.
+    jacobian : (N, 3, 3) array_like
+        Field gradient ``dv/dx`` (1/s) at the particles, ``jacobian[i, p, q] = dv_p/dx_q``.
+    h : float
+        Time step (s), > 0.
+
+    Returns
+    -------
+    (N, 3) float64 array
+        New positions ``x^n + dx`` (m).
+
+    Raises
+    ------
+    ValueError
+        If ``I - h dv/dx`` is singular for some particle, or shapes disagree.
+    """
+    from .validation import check_points
+
+    x = check_points("positions", positions)
+    v = check_points("velocity", velocity)
+    jac = np.ascontiguousarray(jacobian, dtype=np.float64)
+    if v.shape != x.shape or jac.shape != (x.shape[0], 3, 3):
+        raise ValueError("velocity must be (N, 3) and jacobian (N, 3, 3) with N = len(positions)")
+    h = _check_h(h)
+    dx = np.empty_like(x)
+    _implicit_advection(v, jac, h, dx)
+    if not np.isfinite(dx).all():
+        raise ValueError("I - h dv/dx is singular for some particle: reduce h")
+    return x + dx
+
+
+# ---------------------------------------------------------------------------------------------
+SCHEMES = {
+    "forward": forward_euler,
+    "symplectic": symplectic_euler,
+    "linearized": linearized_backward_euler,
+    "newton": backward_euler,
+}
+
+
+def integrate(system, state, h, scheme="newton", **options):
+    """Advance ``state`` by one step with the named scheme.
+
+    Parameters
+    ----------
+    system, state, h
+        As in :func:`forward_euler`.
+    scheme : {"forward", "symplectic", "linearized", "newton"}
+        Integration scheme.
+    **options
+        Passed to the scheme (solver options of the implicit ones).
+
+    Returns
+    -------
+    StepInfo
+    """
+    check_choice("scheme", scheme, tuple(SCHEMES))
+    return SCHEMES[scheme](system, state, h, **options)

@@ -1,0 +1,185 @@
+"""Mass-spring simulations (cloth, hair, jello) and the topology builders."""
+
+import numpy as np
+import pytest
+
+from filters.colliders import Colliders
+from filters.mass_spring import ClothSimulation, HairSimulation, JelloSimulation
+from filters.simulation import SimulationUnstableError, State
+from filters.topology import (BEND, SHEAR, STRETCH, cloth_from_mesh, cloth_grid, hair_strands,
+                              icosphere, jello_from_mesh, mesh_volume)
+
+# The stiff-cloth case of the issue, with NVIDIA Warp's cloth-example scales: 0.1 m cells and
+# 0.1 kg particles (areal density 10 kg/m^2), seed-form stiffness k = 1e5 N.
+CELL, RHO, K = 0.1, 10.0, 1e5
+
+
+def _stiff_cloth(n, scheme, **options):
+    return ClothSimulation.grid(n, n, size=((n - 1) * CELL, (n - 1) * CELL), origin=(0, 0, 2.0),
+                                pinned=[0, n - 1], areal_density=RHO, stretch_stiffness=K,
+                                scheme=scheme, **options)
+
+
+def test_symplectic_euler_on_stiff_cloth_raises_instability():
+    sim = _stiff_cloth(64, "symplectic")
+    with pytest.raises(SimulationUnstableError) as err:
+        for _ in range(20):
+            sim.step(1.0 / 60.0)
+    assert err.value.time <= 20.0 / 60.0 + 1e-12
+    assert "speed" in err.value.quantity or "non-finite" in err.value.quantity
+
+
+@pytest.mark.parametrize("h", [1.0 / 60.0, 1.0 / 30.0])
+def test_newton_on_64x64_stiff_cloth_never_gains_energy(h):
+    # Two steps each (a 64x64 Newton step is ~5-10 sparse factorisations of 12,288 unknowns,
+    # 0.2-0.5 s each here); settling is checked on a 16x16 cloth below.
+    sim = _stiff_cloth(64, "newton", solver="direct")
+    e = sim.energy()
+    for _ in range(2):
+        sim.step(h)
+        e_new = sim.energy()
+        assert e_new <= e + 1e-9 * abs(e)
+        e = e_new
+    assert sim.state.positions[:, 2].min() < 2.0  # it is falling
+
+
+@pytest.mark.parametrize("h", [1.0 / 60.0, 1.0 / 30.0])
+def test_newton_stiff_cloth_settles_with_pins_carrying_the_weight(h):
+    n = 12
+    sim = _stiff_cloth(n, "newton", solver="direct", damping=2.0, drag=0.3, newton_tol=1e-4,
+                       max_newton=30)
+    e = sim.energy()
+    steps = int(round(4.0 / h))
+    for _ in range(steps):
+        sim.step(h)
+        e_new = sim.energy()
+        assert e_new <= e + 1e-9 * abs(e)
+        e = e_new
+    assert np.abs(sim.state.velocities).max() < 2e-2
+    weight = sim.system.masses[~sim.system.pinned].sum() * 9.81
+    f = sim.pin_forces()  # what the cloth pulls on the pins: its whole weight, downwards
+    assert -f[:, 2].sum() == pytest.approx(weight, rel=1e-2)
+    assert np.abs(f[:, :2].sum(axis=0)).max() < 1e-2 * weight  # horizontal pulls cancel
+
+
+def test_jello_volume_returns_to_rest_after_settling():
+    p, t = icosphere(0.1, 2, (0.0, 0.0, 0.16))
+    floor = Colliders(restitution=0.0, friction=0.5).add_plane((0, 0, 0), (0, 0, 1))
+    sim = JelloSimulation(p, t, spacing=0.04, density=1000.0, stretch_stiffness=2e3,
+                          damping=5.0, colliders=floor, solver="direct")
+    v0 = mesh_volume(p, t)
+    for _ in range(45):
+        sim.step(1.0 / 60.0)
+    pts = sim.mesh_points()
+    assert pts[:, 2].min() < 0.03  # it fell onto the floor
+    assert pts[:, 2].min() > -1e-3  # and did not go through
+    assert np.abs(sim.state.velocities).max() < 1e-2
+    assert abs(mesh_volume(pts, t) / v0 - 1.0) < 0.02
+    frame = sim.frame()
+    assert frame.points.shape == p.shape
+    assert np.array_equal(frame.connectivity[1], t.ravel())
+
+
+def test_jello_embedding_reproduces_the_mesh_at_rest():
+    p, t = icosphere(0.3, 1)
+    top = jello_from_mesh(p, t, spacing=0.1)
+    assert np.allclose(top.embedding.weights.sum(axis=1), 1.0)
+    assert np.abs(top.embedding.points(top.positions) - p).max() < 1e-12
+    assert top.masses.sum() == pytest.approx(1000.0 * mesh_volume(p, t))
+    assert set(np.unique(top.kinds)) == {STRETCH, SHEAR}
+    d = top.rest_lengths
+    assert np.allclose(np.unique(np.round(d / 0.1, 9)), [1.0, np.sqrt(2), np.sqrt(3)])
+
+
+def test_cloth_and_hair_topologies():
+    top = cloth_grid(4, 3)
+    counts = {k: int((top.kinds == k).sum()) for k in (STRETCH, SHEAR, BEND)}
+    assert counts == {STRETCH: 3 * 3 + 4 * 2, SHEAR: 2 * 3 * 2, BEND: 2 * 3 + 4 * 1}
+    assert top.masses.sum() == pytest.approx(0.2)
+    assert len(top.offsets) - 1 == 2 * 3 * 2
+    quad = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    mesh = cloth_from_mesh(quad, [[0, 1, 2], [0, 2, 3]], areal_density=2.0)
+    assert (mesh.kinds == STRETCH).sum() == 5 and (mesh.kinds == BEND).sum() == 1
+    assert sorted(mesh.springs[mesh.kinds == BEND][0]) == [1, 3]
+    assert mesh.masses.sum() == pytest.approx(2.0)
+    hair = hair_strands([[0, 0, 0], [1, 0, 0]], (0, 0, -1), segments=5, length=0.5)
+    assert hair.positions.shape == (12, 3) and hair.pinned.sum() == 2
+    assert (hair.kinds == STRETCH).sum() == 10 and (hair.kinds == BEND).sum() == 8
+    assert hair.topology == "lines" and len(hair.offsets) == 3
+
+
+def test_hair_swings_with_roots_fixed_and_resumes_bit_identically():
+    sim = HairSimulation([[0, 0, 1], [0.1, 0, 1]], (1, 0, 0), segments=8, length=0.2,
+                         stretch_stiffness=50.0, damping=0.01, solver="auto")
+    roots = sim.state.positions[sim.system.pinned].copy()
+    for _ in range(5):
+        sim.step(1 / 60)
+    saved = State.from_arrays(sim.state.to_arrays())
+    for _ in range(5):
+        sim.step(1 / 60)
+    end = sim.state.positions.copy()
+    sim.set_state(saved)
+    for _ in range(5):
+        sim.step(1 / 60)
+    assert np.array_equal(sim.state.positions, end)
+    assert np.array_equal(sim.state.positions[sim.system.pinned], roots)
+    assert sim.state.positions[:, 2].min() < 0.95  # it swings down
+    f = sim.frame()
+    assert sim.output_spec.topology == "lines"
+    assert f.points.shape == (18, 3) and f.point_data["velocity"].shape == (18, 3)
+
+
+def test_cloth_drapes_on_sphere_without_penetration():
+    col = Colliders(friction=0.5).add_sphere((0.5, 0.5, 0.0), 0.3).add_plane((0, 0, -0.3),
+                                                                           (0, 0, 1))
+    sim = ClothSimulation.grid(12, 12, origin=(0, 0, 0.4), stretch_stiffness=500.0,
+                               damping=0.05, colliders=col)
+    for _ in range(30):
+        sim.step(1 / 60)
+    phi, _ = col.sdf(sim.state.positions)
+    assert phi.min() > -0.01
+    assert sim.state.positions[:, 2].min() < 0.3
+
+
+def test_bad_input_raises_value_error():
+    p, t = icosphere(0.1, 1)
+    with pytest.raises(ValueError, match="closed manifold"):  # an open mesh
+        jello_from_mesh(p, t[:-1], spacing=0.05)
+    nonmanifold = np.vstack([t, t[:1]])
+    with pytest.raises(ValueError, match="manifold"):
+        jello_from_mesh(p, nonmanifold, spacing=0.05)
+    flat = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    with pytest.raises(ValueError, match="no volume"):  # a closed mesh with no interior
+        jello_from_mesh(flat, [[0, 1, 2], [0, 2, 1]], spacing=0.1)
+    with pytest.raises(ValueError, match="spacing"):
+        jello_from_mesh(p, t, spacing=2.0)
+    with pytest.raises(ValueError, match="stretch_stiffness"):
+        ClothSimulation.grid(4, 4, stretch_stiffness=-1.0)
+    with pytest.raises(ValueError, match="bend_stiffness"):
+        ClothSimulation.grid(4, 4, bend_stiffness=-1.0)
+    with pytest.raises(ValueError, match="triangles"):
+        cloth_from_mesh(p, [[0, 1]])
+    with pytest.raises(ValueError, match="nx"):
+        cloth_grid(1, 4)
+    with pytest.raises(ValueError, match="scheme"):
+        ClothSimulation.grid(4, 4, scheme="verlet")
+    with pytest.raises(ValueError, match="segments"):
+        hair_strands([[0, 0, 0]], (0, 0, 1), segments=1)
+
+
+@pytest.mark.parametrize("module, params", [
+    ("scenes.cloth_drape", dict(resolution=8)),
+    ("scenes.jello_drop", dict(spacing=0.08, radius=0.1)),
+    ("scenes.hair", dict(strands=4, segments=4)),
+])
+def test_scenes_build_and_step(module, params):
+    import importlib
+
+    mod = importlib.import_module(module)
+    flow = mod.build(**params)
+    sim = flow.source.simulation
+    sim.advance_to(0.1)
+    frame = sim.frame()
+    assert np.isfinite(frame.points).all()
+    assert frame.connectivity is not None and sim.output_spec.fixed_topology
+    assert set(params) <= set(mod.SCENE.parameters)
