@@ -328,12 +328,45 @@ _MESHIO_CELL_TYPES = {1: "vertex", 3: "line", 5: "triangle", 9: "quad", 10: "tet
                       12: "hexahedron", 13: "wedge", 14: "pyramid"}
 
 
+def _csr(cell_array):
+    offsets = numpy_support.vtk_to_numpy(cell_array.GetOffsetsArray()).astype(np.int64)
+    indices = numpy_support.vtk_to_numpy(cell_array.GetConnectivityArray()).astype(np.int64)
+    return offsets, indices
+
+
+def _polyline_segments(offsets, indices):
+    """Split polylines (CSR) into 2-point segments, in order: XDMF/meshio have no polylines."""
+    if len(indices) < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    starts = np.arange(len(indices) - 1)
+    inner = np.ones(len(indices) - 1, dtype=bool)
+    inner[offsets[1:-1] - 1] = False  # the last point of a cell does not start a segment
+    starts = starts[inner]
+    return np.column_stack([indices[starts], indices[starts + 1]])
+
+
 def _meshio_cells(mesh):
     import pyvista as pv
 
-    grid = mesh if isinstance(mesh, pv.UnstructuredGrid) else mesh.cast_to_unstructured_grid()
+    if isinstance(mesh, pv.PolyData):
+        cells = []
+        verts = _csr(mesh.GetVerts())
+        if len(verts[1]):
+            cells.append(("vertex", verts[1].reshape(-1, 1)))
+        lines = _csr(mesh.GetLines())
+        if len(lines[1]):
+            cells.append(("line", _polyline_segments(*lines)))
+        offsets, indices = _csr(mesh.GetPolys())
+        sizes = np.diff(offsets)
+        for size, kind in ((3, "triangle"), (4, "quad")):
+            rows = np.flatnonzero(sizes == size)
+            if len(rows):
+                cells.append((kind, indices[offsets[rows][:, None] + np.arange(size)]))
+        if np.any((sizes != 3) & (sizes != 4)):
+            raise ValueError("only triangles and quads can be exported to XDMF")
+        return cells
     cells = []
-    for vtk_type, block in sorted(grid.cells_dict.items()):
+    for vtk_type, block in sorted(mesh.cells_dict.items()):
         if int(vtk_type) not in _MESHIO_CELL_TYPES:
             raise ValueError(f"VTK cell type {vtk_type} has no XDMF equivalent in this exporter")
         cells.append((_MESHIO_CELL_TYPES[int(vtk_type)], np.asarray(block, dtype=np.int64)))

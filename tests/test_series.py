@@ -180,3 +180,19 @@ def test_read_series_errors(tmp_path):
                    "</Collection></VTKFile>")
     with pytest.raises(SeriesError, match="missing"):
         read_series(bad)
+
+
+def test_xdmf_export_splits_polylines_into_segments(tmp_path):
+    import pyvista as pv
+    writer = SeriesWriter(tmp_path / "hair.pvd")
+    points = np.array([[0, 0, 0], [0, 0, 1], [0, 0, 2], [1, 0, 0], [1, 0, 1.0]])
+    for t in (0.0, 0.5):
+        mesh = pv.PolyData(points + t, lines=np.array([3, 0, 1, 2, 2, 3, 4]))
+        writer.write(mesh, t)
+    xdmf = export_xdmf(tmp_path / "hair.pvd")
+    with meshio.xdmf.TimeSeriesReader(str(xdmf)) as reader:
+        rest, cells = reader.read_points_cells()
+        assert cells[0].type == "line"
+        assert cells[0].data.tolist() == [[0, 1], [1, 2], [3, 4]]
+        t, data, _ = reader.read_data(1)
+        np.testing.assert_allclose(rest + data["displacement"], points + 0.5, atol=1e-15)
