@@ -1,0 +1,55 @@
+"""``drop``: a sphere of liquid falling into a resting pool (WCSPH, Becker & Teschner 2007).
+
+The particle series carries ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure`` (Pa) and
+``id`` (the pool's particles first, then the drop's).
+"""
+
+from __future__ import annotations
+
+from filters.sph_scenarios import drop_liquid
+from pipeline import Flow, SimulationSource
+from pipeline.scene import Scene
+
+SCENE_FPS = 30.0
+SCENE_DURATION = 1.5
+
+
+def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: float = 0.3,
+          pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
+          drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
+          surface_tension: float = 0.0) -> Flow:
+    """Build the drop flow (about 2,500 fluid particles with the defaults).
+
+    Parameters
+    ----------
+    tank_length : float
+        Inner length of the closed tank along x (m).
+    tank_width : float
+        Inner width of the tank along y (m).
+    tank_height : float
+        Inner height of the tank (m).
+    pool_depth : float
+        Depth of the resting pool (m): 0, or at least two spacings.
+    drop_radius : float
+        Radius of the falling sphere (m), at least one spacing.
+    drop_height : float
+        Height of the sphere's centre above the floor (m) at t = 0.
+    drop_speed : float
+        Initial downward speed of the sphere (m/s), >= 0.
+    spacing : float
+        Particle spacing (m), > 0.
+    viscosity : float
+        Monaghan's artificial viscosity ``alpha`` in [0, 1].
+    surface_tension : float
+        Akinci et al. (2013) surface tension coefficient, >= 0.
+    """
+    simulation = drop_liquid(
+        tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,
+        pool_depth=pool_depth, drop_radius=drop_radius, drop_height=drop_height,
+        drop_speed=drop_speed, spacing=spacing, viscosity=viscosity,
+        surface_tension=surface_tension)
+    return Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+
+
+SCENE = Scene("drop", build, "a sphere of liquid falling into a resting pool (WCSPH liquid)",
+              fps=SCENE_FPS, duration=SCENE_DURATION)
