@@ -2,11 +2,11 @@
 
 Works with no display: without ``DISPLAY`` VTK renders through EGL (Mesa), or OSMesa where EGL is
 missing.  A :class:`Renderer` draws one or more series (a liquid surface, particles, cloth...) with
-a look chosen from the data: a polygonal series named ``surface`` as water (specular, slightly
-transparent), other polygonal series as a shaded solid (cloth, jello), lines as tubes (hair), and
-points as shaded spheres (point-Gaussian splats) when there is no surface.  A floor with a subtle
-grid sits under the scene, three lights light it, and the camera is framed from the bounds of the
-frames drawn, so it does not jump during a time-lapse.
+a look chosen from the data: a polygonal series named ``surface`` as water (strongly specular),
+other polygonal series as a shaded solid (cloth, jello), lines as tubes (hair), and points as
+shaded spheres (point-Gaussian splats) when there is no surface.  A floor with a subtle grid sits
+under the scene, three lights light it, and the camera is framed from the bounds of the frames
+drawn, so it does not jump during a time-lapse.
 """
 
 from __future__ import annotations
@@ -235,10 +235,10 @@ class Renderer:
         p = self.plotter
         if layer.kind == "water":
             kwargs = kwargs or {"color": WATER}
+            # Opaque on purpose: with slight transparency, depth peeling under SSAA showed the
+            # liquid's underside through thin sheets as block-shaped pits.
             layer.actor = p.add_mesh(layer.slot, smooth_shading=True, specular=0.9,
-                                     specular_power=60, diffuse=0.75, ambient=0.08, opacity=0.92,
-                                     **kwargs)
-            p.enable_depth_peeling(number_of_peels=4)
+                                     specular_power=60, diffuse=0.75, ambient=0.08, **kwargs)
         elif layer.kind == "solid":
             kwargs = kwargs or {"color": SOLID}
             layer.actor = p.add_mesh(layer.slot, smooth_shading=True, specular=0.3,

@@ -12,6 +12,8 @@ from filters.sph_scenarios import dam_break_liquid
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
+from .liquid_surface import add_liquid_surface
+
 SCENE_FPS = 30.0
 SCENE_DURATION = 2.0
 
@@ -19,7 +21,7 @@ SCENE_DURATION = 2.0
 def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length: float = 0.4,
           depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.01,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
-          cfl: float = 0.4) -> Flow:
+          cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30) -> Flow:
     """Build the dam-break flow (about 2,000 fluid particles with the defaults).
 
     Parameters
@@ -45,12 +47,21 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         Akinci et al. (2013) surface tension coefficient, >= 0.
     cfl : float
         Courant number of the adaptive time step, in (0, 1].
+    surface : bool
+        Also write the reconstructed water surface (``surface.pvd``).
+    smooth_iterations : int
+        Windowed-sinc smoothing iterations of the surface (0 to 10000).
     """
     simulation = dam_break_liquid(
         column_width=column_width, column_height=column_height, tank_length=tank_length,
         depth=depth, tank_height=tank_height, spacing=spacing, viscosity=viscosity, xsph=xsph,
         surface_tension=surface_tension, cfl=cfl)
-    return Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    if surface:
+        add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
+                           tank_hi=(tank_length, depth, tank_height),
+                           smooth_iterations=smooth_iterations)
+    return flow
 
 
 SCENE = Scene("dam_break", build, "a water column collapsing in a closed tank (WCSPH liquid)",

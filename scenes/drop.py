@@ -10,6 +10,8 @@ from filters.sph_scenarios import drop_liquid
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
+from .liquid_surface import add_liquid_surface
+
 SCENE_FPS = 30.0
 SCENE_DURATION = 1.5
 
@@ -17,7 +19,7 @@ SCENE_DURATION = 1.5
 def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: float = 0.3,
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
-          surface_tension: float = 0.0) -> Flow:
+          surface_tension: float = 0.0, surface: bool = True, smooth_iterations: int = 30) -> Flow:
     """Build the drop flow (about 2,500 fluid particles with the defaults).
 
     Parameters
@@ -42,13 +44,22 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         Monaghan's artificial viscosity ``alpha`` in [0, 1].
     surface_tension : float
         Akinci et al. (2013) surface tension coefficient, >= 0.
+    surface : bool
+        Also write the reconstructed water surface (``surface.pvd``).
+    smooth_iterations : int
+        Windowed-sinc smoothing iterations of the surface (0 to 10000).
     """
     simulation = drop_liquid(
         tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,
         pool_depth=pool_depth, drop_radius=drop_radius, drop_height=drop_height,
         drop_speed=drop_speed, spacing=spacing, viscosity=viscosity,
         surface_tension=surface_tension)
-    return Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    if surface:
+        add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
+                           tank_hi=(tank_length, tank_width, tank_height),
+                           smooth_iterations=smooth_iterations)
+    return flow
 
 
 SCENE = Scene("drop", build, "a sphere of liquid falling into a resting pool (WCSPH liquid)",

@@ -22,6 +22,13 @@ SIZE = (160, 120)
 #: Small versions of every scene for the image regression: (parameters, frames).
 SMALL_SCENES = {
     "bouncing": ({"count": 4}, 4),
+    "dam_break": ({"spacing": 0.02, "smooth_iterations": 5}, 3),
+    "drop": ({"spacing": 0.02, "pool_depth": 0.04, "drop_radius": 0.03,
+              "smooth_iterations": 5}, 3),
+    "cloth_drape": ({"resolution": 8}, 3),
+    "jello_drop": ({"spacing": 0.06}, 3),
+    "hair": ({"strands": 12, "segments": 5}, 3),
+    "noise_smoke": ({"rate": 600.0, "max_particles": 400}, 3),
 }
 
 
