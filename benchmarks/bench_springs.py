@@ -8,8 +8,12 @@ Run (under the project's benchmark lock)::
    scales of Warp's cloth benchmark), structural + shear + bend springs of stiffness
    ``k_e = 1e4`` N/m (Hooke form, i.e. the seed-form ``k = 1e4 L`` N), pinned at two corners and
    released horizontal under gravity; backward Euler by Newton with line search at
-   ``h = 1/60`` s with each linear solver (block-Jacobi PCG in Numba, SuperLU direct, auto).  Reported:
-   ms per step, Newton iterations and PCG iterations per step.
+   ``h = 1/60`` s with each solver variant of :data:`VARIANTS` (block-Jacobi PCG on the CSR
+   matrix with a fixed tolerance — the solver before the matrix-free operator —; matrix-free PCG
+   with block Jacobi or symmetric Gauss-Seidel, with a fixed tolerance or an Eisenstat-Walker
+   forcing sequence; SuperLU direct), interleaved step by step.  Reported: ms per step (median
+   and min), Newton and PCG iterations per step, and the largest difference of the final state
+   to the direct-solve run.
 2. **Explicit**: symplectic Euler substeps of the same 64x64 cloth with Warp's cloth-benchmark
    parameters (``k_e = 1000`` N/m, axial damping 10 N s/m, 16 substeps per 1/60 s frame), against
    Warp's own ``benchmark_cloth_warp.WpIntegrator`` on its CPU device, with the same particles and
@@ -51,6 +55,19 @@ from filters.springs import SpringSystem  # noqa: E402
 from filters.topology import cloth_grid  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results" / "springs.json"
+
+#: The implicit numbers of commit 10d0909 (CSR block-Jacobi PCG, fixed tol 1e-3, parallel
+#: incremental-potential reduction), from its springs.json, for the record; the same solver is
+#: re-timed in every run as the ``csr_block_jacobi_fixed_tol`` variant.
+BEFORE = {
+    "64x64_newton_pcg": dict(ms_per_step_median=85.7, newton_iterations_mean=3.25,
+                             pcg_iterations_mean=127.75),
+    "128x128_newton_pcg": dict(ms_per_step_median=382.0, newton_iterations_mean=2.67,
+                               pcg_iterations_mean=112.0),
+    "64x64_k1e5_newton_auto": dict(ms_per_step_median=214.2, newton_iterations_mean=3.75,
+                                   pcg_iterations_mean=344.5),
+    "64x64_hanging_linearized_auto": dict(ms_per_step_median=53.2, pcg_iterations_mean=91.5),
+}
 CELL = 0.1
 MASS = 0.1
 
@@ -61,34 +78,85 @@ def _cloth(n, plane="xy"):
     return top.with_pins([0, n - 1])
 
 
-def implicit(n, solver, steps, k_hooke=1e4, scheme="newton", plane="xy"):
+class _CSROnly:
+    """A SpringSystem seen without its matrix-free operator: the integrators then run PCG on the
+    assembled CSR matrix (the solver of commit 10d0909, kept as the "before" variant)."""
+
+    def __init__(self, system):
+        self._system = system
+
+    def __getattr__(self, name):
+        if name == "implicit_operator":
+            raise AttributeError(name)
+        return getattr(self._system, name)
+
+
+#: Implicit solver variants timed side by side (name -> (solver, options, CSR only)).
+VARIANTS = {
+    # before: block-Jacobi PCG on the CSR matrix, every Newton solve to tol = 1e-3
+    "csr_block_jacobi_fixed_tol": ("pcg", dict(forcing=None), True),
+    # matrix-free operator, same iterations as before
+    "operator_block_jacobi_fixed_tol": ("pcg", dict(forcing=None,
+                                                    preconditioner="block_jacobi"), False),
+    # matrix-free + Eisenstat-Walker forcing (the default of backward_euler)
+    "operator_block_jacobi_ew": ("pcg", dict(preconditioner="block_jacobi"), False),
+    "operator_sgs_ew": ("pcg", dict(preconditioner="sgs"), False),
+    "auto_default": ("auto", dict(), False),
+    "direct": ("direct", dict(), False),
+}
+
+
+def implicit(n, variants, steps, k_hooke=1e4, scheme="newton", plane="xy"):
+    """Time implicit steps of each variant, interleaved step by step (so that a slow spell of
+    the shared machine hits all variants alike); each variant advances its own cloth."""
     top = _cloth(n, plane)
     rest = top.rest_lengths
-    # uniform particle masses, as in Warp's benchmark
-    system = SpringSystem(top.springs, rest, k_hooke * rest, np.full(n * n, MASS),
-                          pinned=top.pinned)
-    state = State(top.positions)
     h = 1.0 / 60.0
     step = backward_euler if scheme == "newton" else linearized_backward_euler
-    step(system, state, h, solver=solver)  # compile, pattern
-    times, newton, linear, direct = [], [], [], []
+    runs = {}
+    for name in variants:
+        solver, options, csr_only = VARIANTS[name]
+        if scheme != "newton":
+            options = {k: v for k, v in options.items() if k != "forcing"}
+        # uniform particle masses, as in Warp's benchmark
+        system = SpringSystem(top.springs, rest, k_hooke * rest, np.full(n * n, MASS),
+                              pinned=top.pinned)
+        target = _CSROnly(system) if csr_only else system
+        state = State(top.positions.copy())
+        step(target, state, h, solver=solver, **options)  # compile, pattern, first step
+        runs[name] = (system, target, state, solver, options, dict(t=[], nw=[], li=[], di=[]))
     for _ in range(steps):
-        t0 = time.perf_counter()
-        info = step(system, state, h, solver=solver)
-        times.append(time.perf_counter() - t0)
-        newton.append(info.newton_iterations)
-        linear.append(info.linear_iterations)
-        direct.append(info.direct_solves)
-    return dict(particles=n * n, springs=int(top.springs.shape[0]), unknowns=3 * n * n,
-                start="hanging" if plane == "xz" else "horizontal, pinned at two corners",
-                nnz=int(system.system_matrix(state.positions, state.positions, h).nnz),
-                scheme=scheme, solver=solver, h=h, k_hooke_N_per_m=k_hooke, steps=steps,
-                ms_per_step_median=1e3 * float(np.median(times)),
-                ms_per_step_mean=1e3 * float(np.mean(times)),
-                newton_iterations_mean=float(np.mean(newton)),
-                pcg_iterations_mean=float(np.mean(linear)),
-                direct_solves_mean=float(np.mean(direct)),
-                final_energy_J=system.energy(state.positions, state.velocities))
+        for name, (system, target, state, solver, options, rec) in runs.items():
+            t0 = time.perf_counter()
+            info = step(target, state, h, solver=solver, **options)
+            rec["t"].append(time.perf_counter() - t0)
+            rec["nw"].append(info.newton_iterations)
+            rec["li"].append(info.linear_iterations)
+            rec["di"].append(info.direct_solves)
+    rows = []
+    ref = runs[variants[-1]][2] if variants[-1] == "direct" else None
+    for name, (system, target, state, solver, options, rec) in runs.items():
+        row = dict(particles=n * n, springs=int(top.springs.shape[0]), unknowns=3 * n * n,
+                   start="hanging" if plane == "xz" else "horizontal, pinned at two corners",
+                   nnz_csr=int(system.system_matrix(state.positions, state.positions, h).nnz),
+                   scheme=scheme, variant=name, solver=solver,
+                   options={k: v for k, v in options.items()}, h=h,
+                   k_hooke_N_per_m=k_hooke, steps=steps,
+                   ms_per_step_median=1e3 * float(np.median(rec["t"])),
+                   ms_per_step_min=1e3 * float(np.min(rec["t"])),
+                   ms_per_step_mean=1e3 * float(np.mean(rec["t"])),
+                   newton_iterations_mean=float(np.mean(rec["nw"])),
+                   pcg_iterations_mean=float(np.mean(rec["li"])),
+                   direct_solves_mean=float(np.mean(rec["di"])),
+                   final_energy_J=system.energy(state.positions, state.velocities))
+        if ref is not None:
+            # difference to the direct-solve run after the same steps (inexact-Newton accuracy)
+            row["max_position_diff_to_direct_m"] = float(np.abs(state.positions
+                                                                - ref.positions).max())
+            row["max_velocity_diff_to_direct_m_per_s"] = float(np.abs(
+                state.velocities - ref.velocities).max())
+        rows.append(row)
+    return rows
 
 
 def _warp_integrator(top, damping):
@@ -191,17 +259,22 @@ def main():
         speedup_vs_warp_range=[float(min(r["speedup_vs_warp"] for r in rounds)),
                                float(max(r["speedup_vs_warp"] for r in rounds))])
     print(json.dumps(out["explicit"], indent=1), flush=True)
-    for n, solvers, steps in ((64, ("pcg", "direct", "auto"), 8), (128, ("pcg", "direct"), 3)):
-        for solver in solvers:
-            row = implicit(n, solver, steps)
+    cases = [
+        (64, tuple(VARIANTS), 12, {}),
+        (128, ("csr_block_jacobi_fixed_tol", "operator_block_jacobi_ew", "operator_sgs_ew",
+               "direct"), 3, {}),
+        # the stiffer reading of "k = 1e4": seed-form k = 1e4 N, i.e. k_e = 1e4 / 0.1 = 1e5 N/m
+        (64, ("csr_block_jacobi_fixed_tol", "operator_block_jacobi_ew", "operator_sgs_ew"), 4,
+         dict(k_hooke=1e5)),
+        # one linearised Newton step (Baraff & Witkin 1998) on a hanging cloth (stable at any h)
+        (64, ("csr_block_jacobi_fixed_tol", "auto_default"), 8,
+         dict(scheme="linearized", plane="xz")),
+    ]
+    for n, variants, steps, kw in cases:
+        for row in implicit(n, variants, steps, **kw):
             out["implicit"].append(row)
             print(json.dumps(row), flush=True)
-    # the stiffer reading of "k = 1e4": seed-form k = 1e4 N, i.e. k_e = 1e4 / 0.1 = 1e5 N/m
-    out["implicit"].append(implicit(64, "auto", 4, k_hooke=1e5))
-    print(json.dumps(out["implicit"][-1]), flush=True)
-    # one linearised Newton step (Baraff & Witkin 1998) on a hanging cloth (stable at any h)
-    out["implicit"].append(implicit(64, "auto", 8, scheme="linearized", plane="xz"))
-    print(json.dumps(out["implicit"][-1]), flush=True)
+    out["before_commit_10d0909"] = BEFORE
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(out, indent=1))
     if limit is not None:

@@ -44,6 +44,7 @@ __all__ = [
     "spring_energy",
     "spring_jacobians",
     "SpringSystem",
+    "SpringOperator",
 ]
 
 #: Spring damping models: 0 = axial (seed), 1 = relative velocity.
@@ -486,6 +487,189 @@ def _add_diagonal_blocks(blocks, diag_slot, bptr, pinned, data):
                 data[9 * b0 + 3 * r * nb + 3 * dpos + q] += blocks[i, r, q]
 
 
+# ---------------------------------------------------------------------------------------------
+# Matrix-free implicit operator
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _operator_coefficients(x, xdir, pairs, ke, rest, c, mode, h, blocks):
+    """Per-spring symmetric blocks ``K_s + C_s / h`` (6 entries: xx, xy, xz, yy, yz, zz).
+
+    Equal to the blocks that :meth:`SpringSystem.system_matrix` assembles (definite ``K``,
+    compressed springs clamped; no position derivative of the damping force):
+    ``alpha u u^T + beta I + gamma w w^T`` with ``u`` the direction at ``x`` and ``w`` the frozen
+    damping direction at ``xdir``; for ``L > 0``, ``K_s = k_e [u u^T + t (I - u u^T)]`` with
+    ``t = max(1 - L/l, 0)``, i.e. ``alpha = k_e (1 - t)``, ``beta = k_e t``; for ``L = 0``,
+    ``K_s = k_e I``; axial damping ``C_s = c w w^T``, relative damping ``C_s = c I``.
+    Serial: one pass over 24k springs costs ~0.1 ms, less than a parallel region's start-up on a
+    busy machine.
+    """
+    inv_h = 1.0 / h
+    for s in range(pairs.shape[0]):
+        a = pairs[s, 0]
+        b = pairs[s, 1]
+        alpha = 0.0
+        beta = 0.0
+        gamma = 0.0
+        u0 = 0.0
+        u1 = 0.0
+        u2 = 0.0
+        w0 = 0.0
+        w1 = 0.0
+        w2 = 0.0
+        if rest[s] == 0.0:
+            beta = ke[s]
+        else:
+            d0 = x[a, 0] - x[b, 0]
+            d1 = x[a, 1] - x[b, 1]
+            d2 = x[a, 2] - x[b, 2]
+            l = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if l > _EPS:
+                t = 1.0 - rest[s] / l
+                if t < 0.0:
+                    t = 0.0
+                u0 = d0 / l
+                u1 = d1 / l
+                u2 = d2 / l
+                alpha = ke[s] * (1.0 - t)
+                beta = ke[s] * t
+        if mode == 1:
+            beta += c[s] * inv_h
+        elif c[s] != 0.0:
+            e0 = xdir[a, 0] - xdir[b, 0]
+            e1 = xdir[a, 1] - xdir[b, 1]
+            e2 = xdir[a, 2] - xdir[b, 2]
+            le = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            if le > _EPS:
+                w0 = e0 / le
+                w1 = e1 / le
+                w2 = e2 / le
+                gamma = c[s] * inv_h
+        blocks[s, 0] = alpha * u0 * u0 + gamma * w0 * w0 + beta
+        blocks[s, 1] = alpha * u0 * u1 + gamma * w0 * w1
+        blocks[s, 2] = alpha * u0 * u2 + gamma * w0 * w2
+        blocks[s, 3] = alpha * u1 * u1 + gamma * w1 * w1 + beta
+        blocks[s, 4] = alpha * u1 * u2 + gamma * w1 * w2
+        blocks[s, 5] = alpha * u2 * u2 + gamma * w2 * w2 + beta
+
+
+@njit(cache=True)
+def _operator_diagonal(masses, pinned, h, drag, contact_blocks, diag):
+    """Particle diagonal blocks ``(m/h^2 + drag/h) I`` (+ contact blocks); identity if pinned."""
+    dm = drag / h
+    with_contacts = contact_blocks.shape[0] == masses.shape[0]
+    for i in range(masses.shape[0]):
+        for r in range(3):
+            for q in range(3):
+                diag[i, r, q] = 0.0
+        if pinned[i]:
+            for r in range(3):
+                diag[i, r, r] = 1.0
+            continue
+        for r in range(3):
+            diag[i, r, r] = masses[i] / (h * h) + dm
+        if with_contacts:
+            for r in range(3):
+                for q in range(3):
+                    diag[i, r, q] += contact_blocks[i, r, q]
+
+
+@njit(cache=True)
+def _operator_matvec(pairs, free, blocks, diag, p, y):
+    """``y = H p`` for the matrix-free operator (vectors (N, 3)); returns ``p . H p``."""
+    acc = 0.0
+    for i in range(p.shape[0]):
+        p0 = p[i, 0]
+        p1 = p[i, 1]
+        p2 = p[i, 2]
+        y0 = diag[i, 0, 0] * p0 + diag[i, 0, 1] * p1 + diag[i, 0, 2] * p2
+        y1 = diag[i, 1, 0] * p0 + diag[i, 1, 1] * p1 + diag[i, 1, 2] * p2
+        y2 = diag[i, 2, 0] * p0 + diag[i, 2, 1] * p1 + diag[i, 2, 2] * p2
+        y[i, 0] = y0
+        y[i, 1] = y1
+        y[i, 2] = y2
+        acc += p0 * y0 + p1 * y1 + p2 * y2
+    for s in range(pairs.shape[0]):
+        a = pairs[s, 0]
+        b = pairs[s, 1]
+        fa = free[a]
+        fb = free[b]
+        d0 = fa * p[a, 0] - fb * p[b, 0]
+        d1 = fa * p[a, 1] - fb * p[b, 1]
+        d2 = fa * p[a, 2] - fb * p[b, 2]
+        k0 = blocks[s, 0] * d0 + blocks[s, 1] * d1 + blocks[s, 2] * d2
+        k1 = blocks[s, 1] * d0 + blocks[s, 3] * d1 + blocks[s, 4] * d2
+        k2 = blocks[s, 2] * d0 + blocks[s, 4] * d1 + blocks[s, 5] * d2
+        acc += d0 * k0 + d1 * k1 + d2 * k2
+        y[a, 0] += fa * k0
+        y[a, 1] += fa * k1
+        y[a, 2] += fa * k2
+        y[b, 0] -= fb * k0
+        y[b, 1] -= fb * k1
+        y[b, 2] -= fb * k2
+    return acc
+
+
+class SpringOperator:
+    """The implicit system matrix ``H = M/h^2 + K + C/h`` of a :class:`SpringSystem`, matrix-free.
+
+    Per spring ``s`` joining ``a`` and ``b`` the symmetric block ``K_s + C_s/h`` (from the
+    Baraff & Witkin 1998 spring Jacobians) is stored as its 6 distinct entries, and
+    ``H p = D p + sum_s [e_a - e_b] (K_s + C_s/h) (p_a - p_b)`` with ``D`` the particle diagonal
+    blocks.  Rows and columns of pinned particles are the identity (``free`` masks them).  Equal
+    to :meth:`SpringSystem.system_matrix` (same SPD matrix) but 6 numbers per spring instead of
+    ~39 CSR non-zeros with their column indices: a product costs ~0.1 ms instead of ~0.5 ms on
+    the 64x64 benchmark cloth.
+
+    Attributes
+    ----------
+    pairs : (S, 2) int64 array
+        Spring end points.
+    free : (N,) float64 array
+        1 for free particles, 0 for pinned ones.
+    blocks : (S, 6) float64 array
+        Entries xx, xy, xz, yy, yz, zz of ``K_s + C_s/h`` (N/m).
+    diag : (N, 3, 3) float64 array
+        Particle blocks ``(m/h^2 + drag/h) I`` plus contact Hessian blocks (N/m); identity if
+        pinned.
+    lower, upper : tuple of 3 int64 arrays
+        Particle ``i`` -> incident springs whose other end ``j`` is ``< i`` (``lower``) or
+        ``> i`` (``upper``), in CSR form ``(ptr (N+1,), spring, other)``, for the forward and
+        backward Gauss-Seidel sweeps.
+    """
+
+    def __init__(self, pairs, free, blocks, diag, inc_ptr, inc_spring, inc_other):
+        self.pairs = pairs
+        self.free = free
+        self.blocks = blocks
+        self.diag = diag
+        n = diag.shape[0]
+        node = np.repeat(np.arange(n), np.diff(inc_ptr))
+        halves = []
+        for keep in (inc_other < node, inc_other > node):
+            ptr = np.zeros(n + 1, dtype=np.int64)
+            np.cumsum(np.bincount(node[keep], minlength=n), out=ptr[1:])
+            halves.append((ptr, np.ascontiguousarray(inc_spring[keep], dtype=np.int64),
+                           np.ascontiguousarray(inc_other[keep], dtype=np.int64)))
+        self.lower, self.upper = halves
+
+    @property
+    def shape(self):
+        """``(3N, 3N)``."""
+        n = 3 * self.diag.shape[0]
+        return (n, n)
+
+    def matvec(self, p):
+        """``H p`` for ``p`` of shape (N, 3) or (3N,); same shape out."""
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        y = np.empty_like(p)
+        _operator_matvec(self.pairs, self.free, self.blocks, self.diag, p.reshape(-1, 3),
+                         y.reshape(-1, 3))
+        return y
+
+    def __matmul__(self, p):
+        return self.matvec(p)
+
+
 class SpringSystem:
     """A set of damped springs between particles with masses, gravity, drag and pins.
 
@@ -559,6 +743,9 @@ class SpringSystem:
         self._pairs32 = self.pairs.astype(np.int32)
         self._f_scratch = None
         self._pattern = None
+        self._operator = None
+        self._undamped = self.drag == 0.0 and not np.any(self.damping)
+        self._no_blocks = np.zeros((0, 3, 3))
         self.colliders = colliders
         if colliders is not None:
             default = max(1e4, 10.0 * float(self.ke.max(initial=0.0)))
@@ -616,6 +803,9 @@ class SpringSystem:
         Linear in ``v``: it equals ``-C v`` with ``C`` the damping matrix at ``xdir``.
         """
         f = np.empty_like(v) if out is None else out
+        if self._undamped:
+            f[...] = 0.0
+            return f
         zero_g = np.zeros(3)
         with _threads(self.pairs.shape[0]):
             _total_forces(xdir, v, self.pairs, self._zero_k, self.rest, self.damping,
@@ -729,3 +919,31 @@ class SpringSystem:
                 self._contacts(x)
                 _add_diagonal_blocks(self._cb, p["diag_slot"], p["bptr"], self.pinned, mat.data)
         return mat
+
+    def implicit_operator(self, x, xdir, h):
+        """The matrix ``H`` of :meth:`system_matrix`, as a matrix-free :class:`SpringOperator`.
+
+        Same arguments and same matrix as :meth:`system_matrix`; the PCG solver of
+        :mod:`filters.integrators` uses it (the CSR matrix remains for direct solves).  The
+        returned object's arrays are reused (overwritten) by the next call.
+
+        Returns
+        -------
+        SpringOperator
+        """
+        if self._operator is None:
+            n = self.n_points
+            s = self.pairs.shape[0]
+            self._operator = SpringOperator(self.pairs, np.where(self.pinned, 0.0, 1.0),
+                                            np.empty((s, 6)), np.empty((n, 3, 3)),
+                                            self.inc_ptr, self.inc_spring, self.inc_other)
+        op = self._operator
+        _operator_coefficients(x, xdir, self.pairs, self.ke, self.rest, self.damping, self.mode,
+                               float(h), op.blocks)
+        if self.colliders is not None:
+            self._contacts(x)
+            blocks = self._cb
+        else:
+            blocks = self._no_blocks
+        _operator_diagonal(self.masses, self.pinned, float(h), self.drag, blocks, op.diag)
+        return op
