@@ -306,6 +306,13 @@ class MetaballSplat(Algorithm):
         A :mod:`filters.implicit` shape combined with the particle field by ``operation``.
     operation : {"union", "intersection", "difference"}
         How ``implicit`` combines with the particles' field.
+    anisotropic : bool
+        Splat ellipsoidal kernels stretched along the local particle distribution (Yu & Turk
+        2013, :mod:`filters.anisotropy`): flatter sheets and sharper edges, about 2x the cost.
+        Kernels ``sph``, ``metaball`` and ``blobby``.
+    anisotropy : dict, optional
+        Options of :func:`filters.anisotropy.anisotropic_kernels` (``stretch``,
+        ``min_neighbors``, ``smoothing``, ``neighbor_factor``, ``layer_band``, ``max_axis``).
     """
 
     def __init__(self, radius: float = 0.01, cell_size: float | None = None, *,
@@ -313,7 +320,15 @@ class MetaballSplat(Algorithm):
                  radius_array: str | None = None, sparse: bool = True, block_size: int = 8,
                  brick_blocks: int = 4, attributes=("velocity",),
                  max_bytes: int = DEFAULT_MAX_BYTES, implicit=None,
-                 operation: str = "intersection"):
+                 operation: str = "intersection", anisotropic: bool = False,
+                 anisotropy: dict | None = None):
+        from filters.splat_anisotropic import ANISOTROPIC_KERNELS
+
+        self.anisotropic = bool(anisotropic)
+        if self.anisotropic and kernel not in ANISOTROPIC_KERNELS:
+            raise ValueError(f"kernel must be one of {', '.join(map(repr, ANISOTROPIC_KERNELS))} "
+                             f"when anisotropic=True, got {kernel!r}")
+        self.anisotropy = dict(anisotropy or {})
         self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
         self.cell_size = (self.radius / 2 if cell_size is None else
                           check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
@@ -335,9 +350,20 @@ class MetaballSplat(Algorithm):
             outputType="vtkPartitionedDataSet" if self.sparse else "vtkImageData")
 
     def _options(self):
-        return dict(kernel=self.kernel, support=self.support, iso=self.iso,
-                    block_size=self.block_size, blobbiness=self.blobbiness,
-                    max_bytes=self.max_bytes)
+        options = dict(kernel=self.kernel, support=self.support, iso=self.iso,
+                       block_size=self.block_size, blobbiness=self.blobbiness,
+                       max_bytes=self.max_bytes)
+        if self.anisotropic:
+            options.update(self.anisotropy)
+        return options
+
+    def _splat(self, sparse: bool):
+        """The splatting function for the chosen grid and kernel shape."""
+        if self.anisotropic:
+            from filters.splat_anisotropic import splat_dense_anisotropic, splat_sparse_anisotropic
+
+            return splat_sparse_anisotropic if sparse else splat_dense_anisotropic
+        return splat_sparse if sparse else splat_dense
 
     def RequestData(self, request, inInfo, outInfo):
         inp = vtkPointSet.GetData(inInfo[0], 0)
@@ -352,7 +378,7 @@ class MetaballSplat(Algorithm):
         if self.implicit is not None:
             from filters.implicit import combine_dense, combine_sparse
         if self.sparse:
-            grid = splat_sparse(positions, radius, self.cell_size, **self._options())
+            grid = self._splat(True)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
                 grid = combine_sparse(grid, self.implicit, self.operation,
                                       max_bytes=self.max_bytes)
@@ -368,7 +394,7 @@ class MetaballSplat(Algorithm):
                 k += 1
             cell = grid.cell_size
         else:
-            field = splat_dense(positions, radius, self.cell_size, **self._options())
+            field = self._splat(False)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
                 field = combine_dense(field, self.implicit, self.operation)
             out = vtkImageData.GetData(outInfo, 0)

@@ -1,0 +1,251 @@
+"""Anisotropic kernels (Yu & Turk 2013): filters.anisotropy and filters.splat_anisotropic."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from filters.anisotropy import anisotropic_kernels, kernel_axes
+from filters.sparse_grid import DenseField, SparseGrid
+from filters.splat import lone_particle_radius, splat_dense, splat_sparse
+from filters.splat_anisotropic import (
+    ANISOTROPIC_ISO,
+    splat_dense_anisotropic,
+    splat_ellipsoids_sparse,
+    splat_sparse_anisotropic,
+)
+from filters.surface_mesh import mesh_stats
+from pipeline.surface import contour_dense, contour_sparse
+
+S = 0.02  # lattice spacing (m)
+R = 0.01  # particle radius (m)
+CELL = 0.005  # voxel edge (m)
+H = 4 * R  # kernel support (sph default)
+
+
+def _lattice(shape, jitter=0.0, seed=0):
+    g = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), -1)
+    g = g.reshape(-1, 3).astype(np.float64) * S
+    rng = np.random.default_rng(seed)
+    return np.ascontiguousarray(g + rng.uniform(-jitter * S, jitter * S, g.shape)), g
+
+
+def _ball(r0, offset=(0.003, -0.001, 0.002)):
+    n = int(r0 / S) + 2
+    g = np.stack(np.meshgrid(*[np.arange(-n, n + 1)] * 3, indexing="ij"), -1).reshape(-1, 3) * S
+    return np.ascontiguousarray(g[np.linalg.norm(g, axis=1) < r0] + np.asarray(offset))
+
+
+def _common(a, b, shift=(0, 0, 0)):
+    """Values of dense fields ``a`` and ``b`` on their common voxels (``b`` shifted back by
+    ``shift`` voxels)."""
+    bo = b.index_origin - np.asarray(shift)
+    lo = np.maximum(a.index_origin, bo)
+    hi = np.minimum(a.index_origin + a.dimensions, bo + b.dimensions)
+
+    def cut(values, origin):
+        s, e = lo - origin, hi - origin
+        return values[s[2]:e[2], s[1]:e[1], s[0]:e[0]]
+
+    return cut(a.values, a.index_origin), cut(b.values, bo)
+
+
+def _top_rms(points, x, ztop):
+    """RMS deviation (in spacings) of the vertices of the top face, away from its rim."""
+    lo = x[:, :2].min(axis=0) + 3 * S
+    hi = x[:, :2].max(axis=0) - 3 * S
+    p = np.asarray(points, np.float64)
+    m = ((p[:, 2] > ztop - 0.25 * S) & (p[:, 0] > lo[0]) & (p[:, 0] < hi[0])
+         & (p[:, 1] > lo[1]) & (p[:, 1] < hi[1]))
+    assert m.sum() > 200
+    z = p[m, 2]
+    return float(np.sqrt(np.mean((z - z.mean()) ** 2)) / S), float((z.mean() - ztop) / S)
+
+
+def test_plane_lattice_flattens_along_the_normal():
+    # a single tilted layer of particles: the shortest kernel axis must be the plane's normal
+    u = np.array([1.0, 0.3, 0.2])
+    u /= np.linalg.norm(u)
+    normal = np.cross(u, [0.0, 0.0, 1.0])
+    normal /= np.linalg.norm(normal)
+    v = np.cross(normal, u)
+    a, b = np.meshgrid(np.arange(-7, 8), np.arange(-7, 8), indexing="ij")
+    a = a.ravel() * S
+    b = b.ravel() * S
+    x = np.ascontiguousarray(np.outer(a, u) + np.outer(b, v) + np.array([0.1, 0.2, 0.3]))
+    centres, G = anisotropic_kernels(x, R)
+    lengths, axes = kernel_axes(G)
+    centre = (np.abs(a) <= 4 * S) & (np.abs(b) <= 4 * S)
+    cosang = np.abs(axes[centre, :, 0] @ normal)
+    assert np.degrees(np.arccos(np.clip(cosang, -1, 1))).max() < 5.0
+    # flattened: the shortest axis is k_r times shorter than the others (clamped), and the
+    # ellipsoid keeps the volume of the spherical kernel; no axis is longer than 1.6 h
+    assert np.all(lengths[centre, 1] / lengths[centre, 0] > 3.9)
+    assert np.allclose(np.prod(lengths[centre], axis=1), H**3, rtol=1e-9)
+    assert lengths.max() <= 1.6 * H * (1 + 1e-12)
+    assert lengths[~centre].max() > 1.59 * H  # the rim's line-like neighbourhoods are capped
+    # the centres stay in the plane
+    assert np.abs((centres - x) @ normal).max() < 1e-12
+
+
+def test_isolated_particle_stays_spherical():
+    blob, _ = _lattice((4, 4, 4))
+    lone = np.array([[1.0, 1.0, 1.0]])
+    x = np.ascontiguousarray(np.vstack([blob, lone]))
+    centres, G = anisotropic_kernels(x, R)
+    assert np.array_equal(G[-1], np.eye(3) / H)
+    assert np.array_equal(centres[-1], lone[0])
+    # splatted alone, it is the sphere the isotropic kernel predicts
+    grid = splat_sparse_anisotropic(lone, R, CELL)
+    pts, tris = contour_sparse(grid)
+    d = np.linalg.norm(pts - lone[0], axis=1)
+    assert abs(d.mean() - lone_particle_radius("sph", R, iso=ANISOTROPIC_ISO["sph"])) < 0.05 * CELL
+    assert d.std() < 0.05 * CELL
+
+
+def test_spherical_kernels_reproduce_the_isotropic_splat():
+    # stretch 1 and no smoothing: G = I / h, amplitudes = SPH volumes -> the isotropic field
+    x, _ = _lattice((6, 5, 4), jitter=0.1)
+    a = splat_dense(x, R, CELL)
+    b = splat_dense_anisotropic(x, R, CELL, stretch=1.0, smoothing=0.0, iso=0.6)
+    va, vb = _common(a, b)
+    assert min(va.shape) > 40
+    assert np.abs(va - vb).max() < 1e-5
+
+
+def test_flat_pool_is_flatter_than_with_isotropic_kernels():
+    x, _ = _lattice((14, 14, 5), jitter=0.1)
+    ztop = 4 * S
+    rms_iso, off_iso = _top_rms(contour_sparse(splat_sparse(x, R, CELL))[0], x, ztop)
+    mesh = contour_sparse(splat_sparse_anisotropic(x, R, CELL))
+    st = mesh_stats(*mesh)
+    assert st.closed and st.manifold and st.components == 1  # no bubbles between the layers
+    rms_ani, off_ani = _top_rms(mesh[0], x, ztop)
+    assert rms_ani <= 0.05
+    assert rms_ani < 0.75 * rms_iso
+    # the surface stays where the liquid ends (half a spacing above the top layer)
+    assert 0.35 < off_ani < 0.6
+
+
+def test_ball_volume_within_one_percent():
+    x = _ball(0.12)
+    grid = splat_sparse_anisotropic(x, R, CELL)
+    st = mesh_stats(*contour_sparse(grid))
+    volume = len(x) * S**3
+    assert st.closed and st.manifold and st.euler == 2 and st.components == 1
+    assert abs(st.volume / volume - 1) < 0.01
+
+
+def test_sparse_and_dense_give_the_same_mesh():
+    x = _ball(0.08)
+    sparse = splat_sparse_anisotropic(x, R, CELL)
+    assert sparse.inside_keys.size > 0  # interior really skipped
+    dense = splat_dense_anisotropic(x, R, CELL)
+    assert isinstance(sparse, SparseGrid) and isinstance(dense, DenseField)
+    pa, ta = contour_sparse(sparse)
+    pb, tb = contour_dense(dense)
+    assert ta.shape == tb.shape
+    key = lambda p: p[np.lexsort(p.T[::-1])]  # noqa: E731
+    assert np.allclose(key(pa), key(pb), rtol=0, atol=1e-6)
+
+
+def test_bitwise_identical_for_any_thread_count():
+    x, _ = _lattice((8, 7, 5), jitter=0.1, seed=3)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        c1, g1 = anisotropic_kernels(x, R)
+        f1 = splat_sparse_anisotropic(x, R, CELL)
+        numba.set_num_threads(before)
+        c2, g2 = anisotropic_kernels(x, R)
+        f2 = splat_sparse_anisotropic(x, R, CELL)
+    finally:
+        numba.set_num_threads(before)
+    assert np.array_equal(c1, c2) and np.array_equal(g1, g2)
+    # the list-based path (hash backend) computes the same kernels
+    c3, g3 = anisotropic_kernels(x, R, backend="hash")
+    assert np.allclose(c1, c3, rtol=0, atol=1e-14) and np.allclose(g1, g3, rtol=1e-9, atol=0)
+    assert np.array_equal(f1.keys, f2.keys) and np.array_equal(f1.data, f2.data)
+
+
+def test_translation_by_whole_cells_translates_the_field():
+    x, _ = _lattice((5, 5, 4), jitter=0.1, seed=1)
+    shift = np.array([3, -2, 5]) * CELL
+    a = splat_dense_anisotropic(x, R, CELL)
+    b = splat_dense_anisotropic(x + shift, R, CELL)
+    va, vb = _common(a, b, (3, -2, 5))
+    assert min(va.shape) > 20 and (va < 0).sum() > 1000
+    assert np.abs(va - vb).max() < 1e-5
+
+
+def test_empty_and_invalid_inputs():
+    grid = splat_sparse_anisotropic(np.zeros((0, 3)), R, CELL)
+    assert grid.empty
+    assert contour_sparse(grid)[1].shape[0] == 0
+    x, _ = _lattice((3, 3, 3))
+    bad = x.copy()
+    bad[1, 2] = np.nan
+    with pytest.raises(ValueError, match="positions"):
+        anisotropic_kernels(bad, R)
+    with pytest.raises(ValueError, match="stretch"):
+        anisotropic_kernels(x, R, stretch=0.5)
+    with pytest.raises(ValueError, match="max_axis"):
+        anisotropic_kernels(x, R, max_axis=0.5)
+    with pytest.raises(ValueError, match="smoothing"):
+        anisotropic_kernels(x, R, smoothing=1.5)
+    with pytest.raises(ValueError, match="radius"):
+        anisotropic_kernels(x, -1.0)
+    with pytest.raises(ValueError, match="kernel"):
+        splat_sparse_anisotropic(x, R, CELL, kernel="zhu_bridson")
+    with pytest.raises(ValueError, match="G must have shape"):
+        splat_ellipsoids_sparse(x, np.zeros((2, 3, 3)), 1.0, CELL)
+    with pytest.raises(ValueError, match="positive definite"):
+        splat_ellipsoids_sparse(x, np.zeros((len(x), 3, 3)), 1.0, CELL)
+    with pytest.raises(TypeError, match="min_neighbors"):
+        anisotropic_kernels(x, R, min_neighbors=2.5)
+
+
+def test_cube_has_no_bubbles_and_keeps_its_volume():
+    x, _ = _lattice((10, 10, 10), jitter=0.05, seed=1)
+    st = mesh_stats(*contour_sparse(splat_sparse_anisotropic(x, R, CELL)))
+    assert st.closed and st.manifold and st.components == 1 and st.euler == 2
+    assert abs(st.volume / (10 * S) ** 3 - 1) < 0.03
+
+
+def test_metaball_kernel_profile_on_an_ellipsoid():
+    # one particle with an explicit flat G: the surface is the scaled ellipsoid
+    G = np.diag([1 / 0.04, 1 / 0.04, 1 / 0.01])[None]
+    c = np.array([[0.0, 0.0, 0.0]])
+    grid = splat_ellipsoids_sparse(c, G, 1.0, 0.002, kernel="metaball", iso=0.5)
+    pts, _ = contour_sparse(grid)
+    q = np.linalg.norm(pts / np.array([0.04, 0.04, 0.01]), axis=1)
+    assert abs(q.mean() - 0.5) < 0.02  # the metaball polynomial is 1/2 at q = 1/2
+    assert math.isclose(np.abs(pts[:, 2]).max(), 0.005, rel_tol=0.1)
+
+
+def test_metaball_splat_stage_exposes_anisotropic_kernels():
+    """The VTK stage splats ellipsoids when asked and refuses kernels without an ellipsoid form."""
+    import pyvista as pv
+
+    from pipeline.surface import MarchingCubes, MetaballSplat, polydata_to_mesh
+
+    rng = np.random.default_rng(3)
+    axis = np.arange(12) * 0.02
+    x, y, z = np.meshgrid(axis, axis, axis[:4], indexing="ij")
+    pool = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    pool += rng.uniform(-0.002, 0.002, pool.shape)
+    meshes = {}
+    for anisotropic in (False, True):
+        splat = MetaballSplat(0.01, anisotropic=anisotropic)
+        contour = MarchingCubes()
+        splat.SetInputDataObject(0, pv.PolyData(pool))
+        contour.SetInputConnection(splat.GetOutputPort())
+        contour.Update()
+        meshes[anisotropic] = polydata_to_mesh(contour.GetOutputDataObject(0))
+    iso_points, aniso_points = meshes[False][0], meshes[True][0]
+    stats = mesh_stats(*meshes[True])
+    assert stats.closed and stats.manifold and stats.components == 1
+    assert not (len(iso_points) == len(aniso_points) and np.allclose(iso_points, aniso_points))
+    with pytest.raises(ValueError, match="anisotropic=True"):
+        MetaballSplat(0.01, kernel="zhu_bridson", anisotropic=True)
