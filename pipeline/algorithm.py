@@ -24,7 +24,9 @@ class Algorithm(VTKPythonAlgorithmBase):
     def ProcessRequest(self, request, inInfo, outInfo):
         try:
             return VTKPythonAlgorithmBase.ProcessRequest(self, request, inInfo, outInfo)
-        except Exception as exc:  # noqa: BLE001 - handed back to the caller by raise_pending
+        except BaseException as exc:  # noqa: BLE001 - handed back to the caller by raise_pending
+            # BaseException too: a Ctrl-C during a long RequestData must stop the run, not be
+            # swallowed by VTK while the run goes on writing a frame that was never computed.
             self.pending_error = exc
             return 0
 

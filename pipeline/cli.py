@@ -391,6 +391,9 @@ def main(argv=None) -> int:
         print("blobflow: interrupted; the frames written so far are valid (use --resume)",
               file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `blobflow info ... | head`
+        sys.stdout = open(os.devnull, "w")
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -113,8 +113,11 @@ class Flow:
             raise ValueError(f"name must be one of {sorted(self.stages)}, got {name!r}")
         stage = self.stages[name]
         algorithm = stage.algorithm
-        algorithm.UpdateTimeStep(float(time))
+        ok = algorithm.UpdateTimeStep(float(time))
         raise_pending(stage.chain)
+        if not ok:  # a VTK filter of the chain failed without a Python exception
+            raise RuntimeError(f"output {name!r}: the VTK pipeline failed at t = {time} "
+                               f"({algorithm.GetClassName()}); see the VTK error above")
         data = algorithm.GetOutputDataObject(0)
         copy = data.NewInstance()
         copy.ShallowCopy(data)

@@ -196,3 +196,20 @@ def test_xdmf_export_splits_polylines_into_segments(tmp_path):
         assert cells[0].data.tolist() == [[0, 1], [1, 2], [3, 4]]
         t, data, _ = reader.read_data(1)
         np.testing.assert_allclose(rest + data["displacement"], points + 0.5, atol=1e-15)
+
+
+def test_interrupt_inside_a_vtk_request_stops_the_run(tmp_path):
+    """Ctrl-C while VTK runs our RequestData must stop the run, not be swallowed by VTK."""
+    class Interrupted(type(ballistic())):
+        def _step(self, dt):
+            if self.state.time + dt > 0.12:
+                raise KeyboardInterrupt
+            super()._step(dt)
+
+    base = ballistic()
+    sim = Interrupted(base.state.positions, base.state.velocities, max_dt=1 / 100)
+    flow = Flow(SimulationSource(sim, fps=20, duration=0.5))
+    with pytest.raises(KeyboardInterrupt):
+        flow.run(tmp_path / "run", progress=False)
+    times, _ = read_series(tmp_path / "run" / "particles.pvd")
+    assert times.tolist() == [0.0, 0.05, 0.1]
