@@ -634,7 +634,21 @@ class PlaneSDF:
 
 
 @dataclass(frozen=True)
-class SphereSDF:
+class _BallSDF:
+    """Centre and radius of a spherical collider, validated once for both sides of a ball."""
+
+    center: tuple = (0.0, 0.0, 0.0)
+    radius: float = 1.0
+
+    def __post_init__(self):
+        center = check_finite_vector("center", self.center, 3)
+        radius = check_range("radius", self.radius, 0.0, math.inf, low_inclusive=False)
+        object.__setattr__(self, "center", tuple(center.tolist()))
+        object.__setattr__(self, "radius", radius)
+
+
+@dataclass(frozen=True)
+class SphereSDF(_BallSDF):
     """Solid ball collider: ``d = |x - center| - radius``.
 
     Parameters
@@ -645,22 +659,13 @@ class SphereSDF:
         Radius (m), > 0.
     """
 
-    center: tuple = (0.0, 0.0, 0.0)
-    radius: float = 1.0
-
-    def __post_init__(self):
-        center = check_finite_vector("center", self.center, 3)
-        radius = check_range("radius", self.radius, 0.0, math.inf, low_inclusive=False)
-        object.__setattr__(self, "center", tuple(center.tolist()))
-        object.__setattr__(self, "radius", radius)
-
     def pack(self) -> np.ndarray:
         """The collider as one row ``[kind, center, 0, 0, 0, radius]`` (8,)."""
         return np.array([_SDF_SPHERE, *self.center, 0.0, 0.0, 0.0, self.radius])
 
 
 @dataclass(frozen=True)
-class InsideSphereSDF:
+class InsideSphereSDF(_BallSDF):
     """Spherical container: free inside the ball, ``d = radius - |x - center|``.
 
     Parameters
@@ -670,15 +675,6 @@ class InsideSphereSDF:
     radius : float
         Radius (m), > 0.
     """
-
-    center: tuple = (0.0, 0.0, 0.0)
-    radius: float = 1.0
-
-    def __post_init__(self):
-        center = check_finite_vector("center", self.center, 3)
-        radius = check_range("radius", self.radius, 0.0, math.inf, low_inclusive=False)
-        object.__setattr__(self, "center", tuple(center.tolist()))
-        object.__setattr__(self, "radius", radius)
 
     def pack(self) -> np.ndarray:
         """The collider as one row ``[kind, center, 0, 0, 0, radius]`` (8,)."""
