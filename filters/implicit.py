@@ -175,6 +175,9 @@ class Difference(_Binary):
         return self.a.bounds()
 
 
+_BLOCKS_PER_CALL = 128  # blocks whose voxels one shape evaluation takes (12 KiB each)
+
+
 def _apply(op, field, shape):
     if op == "union":
         return np.minimum(field, shape)
@@ -298,14 +301,20 @@ def combine_sparse(grid: SparseGrid, shape: Implicit, operation: str = "intersec
             fixed = constant_in | constant_out
             new_i.append(keys[fixed & inside_after])
             sel = np.flatnonzero(~fixed)
-        for m in sel:
-            origin = unpack_keys(keys[m:m + 1])[0].astype(np.float64) * bsz * cell
-            s = (shape.evaluate(local + origin) * scale).astype(np.float32).reshape(bsz, bsz, bsz)
-            vals = grid.data[m] if base is None else np.full((bsz,) * 3, base, np.float32)
-            new_e_keys.append(keys[m])
+        # the shape at every voxel of the selected blocks, a few thousand blocks per call
+        for start in range(0, sel.size, _BLOCKS_PER_CALL):
+            part = sel[start:start + _BLOCKS_PER_CALL]
+            origins = unpack_keys(keys[part]).astype(np.float64) * bsz * cell
+            pts = (origins[:, None, :] + local[None, :, :]).reshape(-1, 3)
+            s = (shape.evaluate(pts) * scale).astype(np.float32).reshape(-1, bsz, bsz, bsz)
+            vals = (grid.data[part] if base is None
+                    else np.full((part.size,) + (bsz,) * 3, base, np.float32))
+            new_e_keys.append(keys[part])
             new_e_data.append(_apply(operation, vals, s))
-    keys_out = np.array(new_e_keys, np.int64)
-    data_out = (np.stack(new_e_data) if new_e_data else np.zeros((0, bsz, bsz, bsz), np.float32))
+    keys_out = (np.concatenate(new_e_keys).astype(np.int64) if new_e_keys
+                else np.zeros(0, np.int64))
+    data_out = (np.concatenate(new_e_data) if new_e_data
+                else np.zeros((0, bsz, bsz, bsz), np.float32))
     inside_out = np.sort(np.concatenate(new_i)) if new_i else np.zeros(0, np.int64)
     # drop evaluated blocks without any inside voxel next to nothing inside: keep all (cheap)
     return SparseGrid(cell, bsz, keys_out, data_out.astype(np.float32), inside_out,

@@ -461,35 +461,38 @@ def _fill_box(values, lo, bsz, table, ranks, data, inside, outside):
 def _fill_bricks(out, cross, bricks, group, bsz, table, ranks, data, inside, outside):
     n = out.shape[1]
     span = group * bsz
+    nb = (n + bsz - 1) // bsz  # blocks a brick's voxels touch per axis (group + 1)
     for b in prange(bricks.shape[0]):
         ox = bricks[b, 0] * span
         oy = bricks[b, 1] * span
         oz = bricks[b, 2] * span
+        # the brick's blocks looked up once (not once per run of voxels)
+        rank = np.empty((nb, nb, nb), np.int64)
+        for c in range(nb):
+            for bj in range(nb):
+                for a in range(nb):
+                    rank[c, bj, a] = lookup(table, ranks, _pack(bricks[b, 0] * group + a,
+                                                                 bricks[b, 1] * group + bj,
+                                                                 bricks[b, 2] * group + c))
         for k in range(n):
-            gk = oz + k
-            bz = gk // bsz
-            lz = gk - bz * bsz
+            c = k // bsz
+            lz = k - c * bsz
             for j in range(n):
-                gj = oy + j
-                by = gj // bsz
-                ly = gj - by * bsz
-                i = 0
-                while i < n:
-                    gi = ox + i
-                    bx = gi // bsz
-                    lx = gi - bx * bsz
-                    run = min(bsz - lx, n - i)
-                    r = lookup(table, ranks, _pack(bx, by, bz))
+                bj = j // bsz
+                ly = j - bj * bsz
+                for a in range(nb):
+                    i0 = a * bsz
+                    run = min(bsz, n - i0)
+                    r = rank[c, bj, a]
                     if r >= 0:
                         for t in range(run):
-                            out[b, k, j, i + t] = data[r, lz, ly, lx + t]
+                            out[b, k, j, i0 + t] = data[r, lz, ly, t]
                     elif r == -2:
                         for t in range(run):
-                            out[b, k, j, i + t] = inside
+                            out[b, k, j, i0 + t] = inside
                     else:
                         for t in range(run):
-                            out[b, k, j, i + t] = outside
-                    i += run
+                            out[b, k, j, i0 + t] = outside
         flat = out[b].ravel()
         lo = flat[0]
         hi = flat[0]
