@@ -5,6 +5,10 @@ One run, side by side, on identical particles:
 * ``block_100k``: a jittered lattice block of 50 x 50 x 40 = 100,000 particles,
 * ``block_1m``: a jittered lattice block of 100^3 = 1,000,000 particles,
 * ``sphere_100k``: the 100,000 jittered lattice points nearest to a centre (a ball),
+* ``splash_1m``: about 1M particles (984,070) spread over a cube whose volume is 10x the
+  liquid's: half in a pool on its floor, half in balls of radius 5 spacings strewn above it.
+  Shows that memory follows the surface: ``grid_MiB`` (the sparse grid) against
+  ``dense_box_MiB`` (a dense float32 grid over the same box, 2.5 GiB),
 
 with lattice spacing 0.02 m, jitter uniform in +-10 % of the spacing, seed 0.
 
@@ -20,7 +24,7 @@ Tools, each in its own subprocess (peak resident memory per tool):
   volume s^3) onto a vtkImageData with the same cell size + vtkFlyingEdges3D.
 
 The machine is shared, so runs alternate between the tools, one fresh process per run
-(``--repeats`` rounds for the 100k cases, 2 for 1M). Reported per tool and case: the best wall
+(``--repeats`` rounds for the 100k cases, 2 for the others). Reported per tool and case: the best wall
 time (all listed), the largest peak RSS of its processes (VmHWM) and the largest increase over
 the RSS after imports, Numba warm-up and data generation, triangles, closed / manifold, and the
 volume error against the particles' volume ``N s^3``. The absolute peak includes the
@@ -56,7 +60,9 @@ CASES = {
     "block_100k": ("block", (50, 50, 40)),
     "block_1m": ("block", (100, 100, 100)),
     "sphere_100k": ("sphere", 100_000),
+    "splash_1m": ("splash", 1_000_000),
 }
+SPLASH_BOX_FACTOR = 10.0  # the splash's bounding box / the liquid's volume
 
 
 def make_particles(case: str) -> np.ndarray:
@@ -66,14 +72,35 @@ def make_particles(case: str) -> np.ndarray:
     if kind == "block":
         g = np.stack(np.meshgrid(*[np.arange(n) for n in size], indexing="ij"), -1)
         g = g.reshape(-1, 3).astype(np.float64)
-    else:
+    elif kind == "sphere":
         r = int(np.ceil((3 * size / (4 * np.pi)) ** (1 / 3))) + 2
         g = np.stack(np.meshgrid(*[np.arange(-r, r + 1)] * 3, indexing="ij"), -1)
         g = g.reshape(-1, 3).astype(np.float64)
         d = np.linalg.norm(g, axis=1)
         g = g[np.argsort(d, kind="stable")[:size]]
+    else:
+        g = _splash_lattice(size, rng)
     x = g * SPACING + rng.uniform(-0.1 * SPACING, 0.1 * SPACING, g.shape)
     return np.ascontiguousarray(x)
+
+
+def _splash_lattice(size: int, rng) -> np.ndarray:
+    """Lattice points (spacing units) of a splash: a pool holding half the particles on the
+    floor of a cube whose volume is ``SPLASH_BOX_FACTOR`` times the liquid's, the other half
+    as balls of radius 5 spacings strewn over the cube above the pool (overlaps removed)."""
+    side = int(round((SPLASH_BOX_FACTOR * size) ** (1 / 3)))
+    layers = max(1, (size // 2) // (side * side))
+    pool = np.stack(np.meshgrid(np.arange(side), np.arange(side), np.arange(layers),
+                                indexing="ij"), -1).reshape(-1, 3)
+    r = 5
+    ball = np.stack(np.meshgrid(*[np.arange(-r, r + 1)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    ball = ball[(ball**2).sum(1) <= r * r]
+    count = (size - pool.shape[0]) // ball.shape[0] + 1
+    centres = rng.integers([r, r, layers + r + 2], [side - r, side - r, side - r],
+                           size=(count, 3))
+    drops = (centres[:, None, :] + ball[None, :, :]).reshape(-1, 3)
+    # overlapping balls merge (about 1.6 % fewer particles than asked for)
+    return np.unique(np.concatenate([pool, drops]), axis=0).astype(np.float64)
 
 
 def _rss_mib() -> float:
@@ -124,6 +151,9 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
             extra.setdefault("splat_s", []).append(t1 - t0)
             extra.setdefault("contour_s", []).append(t2 - t1)
             extra["grid_MiB"] = grid.nbytes / 2**20
+            # what a dense grid over the particles' supports would take (float32)
+            span = x.max(axis=0) - x.min(axis=0) + 2 * 4 * RADIUS
+            extra["dense_box_MiB"] = float(np.prod(np.ceil(span / CELL) + 1)) * 4 / 2**20
             return out
 
         def warm():  # compile / load the Numba cache outside the timings
@@ -209,6 +239,7 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
         out["splat_s"] = min(extra["splat_s"])
         out["contour_s"] = min(extra["contour_s"])
         out["grid_MiB"] = extra["grid_MiB"]
+        out["dense_box_MiB"] = extra["dense_box_MiB"]
     return out
 
 
@@ -254,7 +285,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--worker", nargs=3, metavar=("TOOL", "CASE", "MESH_NPZ"))
     parser.add_argument("--repeats", type=int, default=5,
-                        help="runs per tool for the 100k cases (alternating; 2 for 1M)")
+                        help="runs per tool for the 100k cases (alternating; 2 for the others)")
     parser.add_argument("--cases", default=",".join(CASES))
     parser.add_argument("--output", default=str(Path(__file__).parent / "results" / "surface.json"))
     args = parser.parse_args(argv)
@@ -265,7 +296,7 @@ def main(argv=None) -> int:
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
     for case in args.cases.split(","):
         tools = ["pysplashsurf", "blobflow"]
-        rounds = 2 if case == "block_1m" else args.repeats
+        rounds = args.repeats if case.endswith("100k") else 2
         runs = {tool: [] for tool in tools}
         # alternate the tools, one fresh process per run, so that both see the same
         # (shared, fluctuating) machine load; keep the best time and the largest peak
