@@ -222,8 +222,10 @@ def mesh_stats(points: np.ndarray, triangles: np.ndarray) -> MeshStats:
 def _stitch(bits, flags, tris):
     """Merge the flagged points with bitwise equal coordinates; remap ``tris`` in place.
 
-    Returns the mask of points kept (first occurrences) and the number of triangles kept
-    (those still with three distinct vertices, moved to the front of ``tris``)."""
+    The kept points (first occurrences, in order) are moved to the front of ``bits`` and the
+    triangles still with three distinct vertices to the front of ``tris``, both in place (no
+    copy of a mesh that may hold tens of millions of vertices). Returns the numbers of points
+    and triangles kept."""
     n = bits.shape[0]
     nflag = 0
     for p in range(n):
@@ -233,31 +235,34 @@ def _stitch(bits, flags, tris):
     while capacity < 2 * nflag:
         capacity *= 2
     table = np.full(capacity, _EMPTY, np.int64)
-    slot_point = np.empty(capacity, np.int64)
+    slot_point = np.empty(capacity, np.int64)  # the kept point's new index (its row is final)
     mask = capacity - 1
-    keep = np.ones(n, np.bool_)
     remap = np.empty(n, np.int64)
     count = 0
     for p in range(n):
+        # rows below ``count`` are final; row p (>= count) is not yet overwritten
+        b0 = bits[p, 0]
+        b1 = bits[p, 1]
+        b2 = bits[p, 2]
         if flags[p]:
-            key = ((bits[p, 0] * 73856093) ^ (bits[p, 1] * 19349663)
-                   ^ (bits[p, 2] * 83492791)) & 0x3FFFFFFFFFFFFFFF
+            key = ((b0 * 73856093) ^ (b1 * 19349663) ^ (b2 * 83492791)) & 0x3FFFFFFFFFFFFFFF
             i = _probe(table, key)
             found = -1
             while table[i] != _EMPTY:
                 q = slot_point[i]
-                if table[i] == key and bits[q, 0] == bits[p, 0] and bits[q, 1] == bits[p, 1] \
-                        and bits[q, 2] == bits[p, 2]:
+                if table[i] == key and bits[q, 0] == b0 and bits[q, 1] == b1 and bits[q, 2] == b2:
                     found = q
                     break
                 i = (i + 1) & mask
             if found >= 0:
-                keep[p] = False
-                remap[p] = remap[found]
+                remap[p] = found
                 continue
             table[i] = key
-            slot_point[i] = p
+            slot_point[i] = count
         remap[p] = count
+        bits[count, 0] = b0
+        bits[count, 1] = b1
+        bits[count, 2] = b2
         count += 1
     kept = 0
     for t in range(tris.shape[0]):
@@ -270,7 +275,7 @@ def _stitch(bits, flags, tris):
             tris[kept, 1] = c
             tris[kept, 2] = b
             kept += 1
-    return keep, kept
+    return count, kept
 
 
 @njit(cache=True)
@@ -308,6 +313,10 @@ def stitch(points: np.ndarray, triangles: np.ndarray, flags: np.ndarray, *,
            reverse: bool = True):
     """Merge points that may be duplicated (``flags``) by exact coordinates, in place.
 
+    Both inputs are overwritten: the merged points are compacted to the front of ``points``
+    (which must be C-contiguous float32 to be worked on in place) and the triangles to the front
+    of ``triangles``; the results are views of those fronts.
+
     Parameters
     ----------
     points : (P, 3) float32
@@ -321,6 +330,7 @@ def stitch(points: np.ndarray, triangles: np.ndarray, flags: np.ndarray, *,
     Returns
     -------
     points : (P', 3) float32
+        A view of the front of ``points`` (when it was C-contiguous float32).
     triangles : (T', 3)
         A view of the front of the input ``triangles``.
     """
@@ -328,8 +338,8 @@ def stitch(points: np.ndarray, triangles: np.ndarray, flags: np.ndarray, *,
     if points.shape[0] == 0:
         return points, triangles[:0]
     bits = points.view(np.int32)
-    keep, kept = _stitch(bits, np.ascontiguousarray(flags), triangles)
+    count, kept = _stitch(bits, np.ascontiguousarray(flags), triangles)
     tris = triangles[:kept]
     if not reverse:
         tris[:, [1, 2]] = tris[:, [2, 1]]
-    return points[keep], tris
+    return points[:count], tris
