@@ -31,6 +31,10 @@ volume error against the particles' volume ``N s^3``. The absolute peak includes
 interpreter and libraries: about 230 MiB for blobflow (Numba's LLVM, VTK), 50 MiB for
 pysplashsurf.
 
+``--flatness`` runs the anisotropic-kernel benchmark instead (resting pools: RMS distance of
+the top surface from the true plane; a cube's edges; cost against the isotropic path), see
+``bench_anisotropy.py``.
+
 Run under the shared lock::
 
     flock /tmp/blobflow-bench.lock env OPENBLAS_NUM_THREADS=1 \\
@@ -288,7 +292,16 @@ def main(argv=None) -> int:
                         help="runs per tool for the 100k cases (alternating; 2 for the others)")
     parser.add_argument("--cases", default=",".join(CASES))
     parser.add_argument("--output", default=str(Path(__file__).parent / "results" / "surface.json"))
+    parser.add_argument("--flatness", action="store_true",
+                        help="instead: flatness, sharpness and cost of anisotropic kernels against "
+                             "isotropic ones and pysplashsurf (bench_anisotropy.run_flatness; "
+                             "writes results/anisotropy.json and anisotropy_flatness.png)")
     args = parser.parse_args(argv)
+    if args.flatness:
+        from bench_anisotropy import run_flatness  # this script's folder is on sys.path
+
+        run_flatness(print)
+        return 0
     if args.worker:
         print(json.dumps(worker(args.worker[0], args.worker[1], args.repeats, args.worker[2])))
         return 0

@@ -308,11 +308,13 @@ class MetaballSplat(Algorithm):
         How ``implicit`` combines with the particles' field.
     anisotropic : bool
         Splat ellipsoidal kernels stretched along the local particle distribution (Yu & Turk
-        2013, :mod:`filters.anisotropy`): flatter sheets and sharper edges, about 2x the cost.
-        Kernels ``sph``, ``metaball`` and ``blobby``.
+        2013, :mod:`filters.anisotropy`): flatter sheets and sharper edges, 1.2-1.45x the
+        reconstruction time (``benchmarks/bench_anisotropy.py``). Kernels ``sph``,
+        ``metaball`` and ``blobby``.
     anisotropy : dict, optional
         Options of :func:`filters.anisotropy.anisotropic_kernels` (``stretch``,
-        ``min_neighbors``, ``smoothing``, ``neighbor_factor``, ``layer_band``, ``max_axis``).
+        ``min_neighbors``, ``smoothing``, ``neighbor_factor``, ``layer_band``, ``max_axis``,
+        ``isotropy``).
     """
 
     def __init__(self, radius: float = 0.01, cell_size: float | None = None, *,

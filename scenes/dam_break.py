@@ -21,7 +21,8 @@ SCENE_DURATION = 2.0
 def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length: float = 0.4,
           depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.01,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
-          cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30) -> Flow:
+          cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
+          anisotropic: bool = True) -> Flow:
     """Build the dam-break flow (about 2,000 fluid particles with the defaults).
 
     Parameters
@@ -51,6 +52,9 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
+    anisotropic : bool
+        Anisotropic kernels for the surface (Yu & Turk 2013): flat water instead of bubble
+        wrap, for about 1.2x the surface time; False splats isotropic SPH kernels.
     """
     simulation = dam_break_liquid(
         column_width=column_width, column_height=column_height, tank_length=tank_length,
@@ -60,7 +64,8 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
     if surface:
         add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
                            tank_hi=(tank_length, depth, tank_height),
-                           smooth_iterations=smooth_iterations)
+                           smooth_iterations=smooth_iterations,
+                           anisotropic=anisotropic)
     return flow
 
 

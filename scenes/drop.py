@@ -19,7 +19,8 @@ SCENE_DURATION = 1.5
 def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: float = 0.3,
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
-          surface_tension: float = 0.0, surface: bool = True, smooth_iterations: int = 30) -> Flow:
+          surface_tension: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
+          anisotropic: bool = True) -> Flow:
     """Build the drop flow (about 2,500 fluid particles with the defaults).
 
     Parameters
@@ -48,6 +49,9 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
+    anisotropic : bool
+        Anisotropic kernels for the surface (Yu & Turk 2013): flat water instead of bubble
+        wrap, for about 1.2x the surface time; False splats isotropic SPH kernels.
     """
     simulation = drop_liquid(
         tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,
@@ -58,7 +62,8 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
     if surface:
         add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
                            tank_hi=(tank_length, tank_width, tank_height),
-                           smooth_iterations=smooth_iterations)
+                           smooth_iterations=smooth_iterations,
+                           anisotropic=anisotropic)
     return flow
 
 
