@@ -10,8 +10,9 @@ Run (under the project's benchmark lock)::
    released horizontal under gravity; backward Euler by Newton with line search at
    ``h = 1/60`` s with each solver variant of :data:`VARIANTS` (block-Jacobi PCG on the CSR
    matrix with a fixed tolerance — the solver before the matrix-free operator —; matrix-free PCG
-   with block Jacobi or symmetric Gauss-Seidel, with a fixed tolerance or an Eisenstat-Walker
-   forcing sequence; SuperLU direct), interleaved step by step.  Reported: ms per step (median
+   with block Jacobi, symmetric Gauss-Seidel or SSOR with Eisenstat's trick (the default), with
+   a fixed tolerance or an Eisenstat-Walker forcing sequence; SuperLU direct), interleaved step
+   by step.  Reported: ms per step (median
    and min), Newton and PCG iterations per step, and the largest difference of the final state
    to the direct-solve run.
 2. **Explicit**: symplectic Euler substeps of the same 64x64 cloth with Warp's cloth-benchmark
@@ -68,6 +69,22 @@ BEFORE = {
                                    pcg_iterations_mean=344.5),
     "64x64_hanging_linearized_auto": dict(ms_per_step_median=53.2, pcg_iterations_mean=91.5),
 }
+#: The implicit numbers of commit be7fe6e (matrix-free operator, block-Jacobi PCG with
+#: Eisenstat-Walker forcing as the default), from its springs.json, for the record: the default
+#: is now SSOR with Eisenstat's trick (``operator_ssor_ew`` / ``auto_default``).
+BEFORE_SSOR = {
+    "64x64_newton_auto_default": dict(ms_per_step_median=20.9, ms_per_step_min=12.9,
+                                      newton_iterations_mean=3.33, pcg_iterations_mean=102.25),
+    "128x128_newton_operator_block_jacobi_ew": dict(ms_per_step_median=89.7,
+                                                    ms_per_step_min=52.0,
+                                                    newton_iterations_mean=2.67,
+                                                    pcg_iterations_mean=86.7),
+    "64x64_k1e5_newton_operator_block_jacobi_ew": dict(ms_per_step_median=43.6,
+                                                       ms_per_step_min=38.5,
+                                                       newton_iterations_mean=3.75,
+                                                       pcg_iterations_mean=259.2),
+    "64x64_hanging_linearized_auto": dict(ms_per_step_median=19.2, pcg_iterations_mean=91.5),
+}
 CELL = 0.1
 MASS = 0.1
 
@@ -101,6 +118,8 @@ VARIANTS = {
     # matrix-free + Eisenstat-Walker forcing (the default of backward_euler)
     "operator_block_jacobi_ew": ("pcg", dict(preconditioner="block_jacobi"), False),
     "operator_sgs_ew": ("pcg", dict(preconditioner="sgs"), False),
+    # block SSOR with Eisenstat's trick (the default preconditioner of backward_euler)
+    "operator_ssor_ew": ("pcg", dict(preconditioner="ssor"), False),
     "auto_default": ("auto", dict(), False),
     "direct": ("direct", dict(), False),
 }
@@ -262,10 +281,10 @@ def main():
     cases = [
         (64, tuple(VARIANTS), 12, {}),
         (128, ("csr_block_jacobi_fixed_tol", "operator_block_jacobi_ew", "operator_sgs_ew",
-               "direct"), 3, {}),
+               "operator_ssor_ew", "direct"), 3, {}),
         # the stiffer reading of "k = 1e4": seed-form k = 1e4 N, i.e. k_e = 1e4 / 0.1 = 1e5 N/m
-        (64, ("csr_block_jacobi_fixed_tol", "operator_block_jacobi_ew", "operator_sgs_ew"), 4,
-         dict(k_hooke=1e5)),
+        (64, ("csr_block_jacobi_fixed_tol", "operator_block_jacobi_ew", "operator_sgs_ew",
+              "operator_ssor_ew"), 4, dict(k_hooke=1e5)),
         # one linearised Newton step (Baraff & Witkin 1998) on a hanging cloth (stable at any h)
         (64, ("csr_block_jacobi_fixed_tol", "auto_default"), 8,
          dict(scheme="linearized", plane="xz")),
@@ -275,6 +294,7 @@ def main():
             out["implicit"].append(row)
             print(json.dumps(row), flush=True)
     out["before_commit_10d0909"] = BEFORE
+    out["before_commit_be7fe6e"] = BEFORE_SSOR
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(out, indent=1))
     if limit is not None:

@@ -234,6 +234,38 @@ def _symplectic_kernel(x, v, pairs, ke, rest, c, mode, inc_ptr, inc_spring, inc_
     return math.sqrt(vmax)
 
 
+@njit(cache=True)
+def _elastic_energy_serial(x, pairs, ke, rest):
+    """Serial :func:`_elastic_energy` (below :data:`PARALLEL_MIN_SPRINGS` springs)."""
+    e = 0.0
+    for s in range(pairs.shape[0]):
+        a = pairs[s, 0]
+        b = pairs[s, 1]
+        d0 = x[a, 0] - x[b, 0]
+        d1 = x[a, 1] - x[b, 1]
+        d2 = x[a, 2] - x[b, 2]
+        l2 = d0 * d0 + d1 * d1 + d2 * d2
+        if rest[s] == 0.0:
+            e += 0.5 * ke[s] * l2
+        else:
+            dl = math.sqrt(l2) - rest[s]
+            e += 0.5 * ke[s] * dl * dl
+    return e
+
+
+@njit(cache=True)
+def _point_energies(x, v, masses, gravity):
+    """(kinetic, gravitational) energy (J) of point masses: serial Numba instead of NumPy's
+    BLAS calls (``x @ g``, ``dot``), whose threads stall on a busy machine."""
+    kinetic = 0.0
+    potential = 0.0
+    for i in range(x.shape[0]):
+        kinetic += masses[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
+        potential -= masses[i] * (x[i, 0] * gravity[0] + x[i, 1] * gravity[1]
+                                  + x[i, 2] * gravity[2])
+    return 0.5 * kinetic, potential
+
+
 @njit(parallel=True, cache=True)
 def _elastic_energy(x, pairs, ke, rest):
     e = 0.0
@@ -524,12 +556,13 @@ def _operator_coefficients(x, xdir, pairs, ke, rest, c, mode, h, blocks):
             d2 = x[a, 2] - x[b, 2]
             l = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             if l > _EPS:
-                t = 1.0 - rest[s] / l
+                inv_l = 1.0 / l
+                t = 1.0 - rest[s] * inv_l
                 if t < 0.0:
                     t = 0.0
-                u0 = d0 / l
-                u1 = d1 / l
-                u2 = d2 / l
+                u0 = d0 * inv_l
+                u1 = d1 * inv_l
+                u2 = d2 * inv_l
                 alpha = ke[s] * (1.0 - t)
                 beta = ke[s] * t
         if mode == 1:
@@ -635,6 +668,11 @@ class SpringOperator:
         Particle ``i`` -> incident springs whose other end ``j`` is ``< i`` (``lower``) or
         ``> i`` (``upper``), in CSR form ``(ptr (N+1,), spring, other)``, for the forward and
         backward Gauss-Seidel sweeps.
+    upper_ordered : bool
+        True when the springs are in upper-incidence order (``pairs[:, 0] < pairs[:, 1]``,
+        sorted by ``pairs[:, 0]``), so that ``upper[1]`` is ``arange(S)`` and the SSOR sweeps
+        of :func:`filters.integrators.pcg_operator` stream ``blocks`` in place.
+        :meth:`SpringSystem.implicit_operator` builds its operator in this order.
     """
 
     def __init__(self, pairs, free, blocks, diag, inc_ptr, inc_spring, inc_other):
@@ -651,6 +689,9 @@ class SpringOperator:
             halves.append((ptr, np.ascontiguousarray(inc_spring[keep], dtype=np.int64),
                            np.ascontiguousarray(inc_other[keep], dtype=np.int64)))
         self.lower, self.upper = halves
+        s = pairs.shape[0]
+        self.upper_ordered = bool(self.upper[1].shape[0] == s
+                                  and np.array_equal(self.upper[1], np.arange(s)))
 
     @property
     def shape(self):
@@ -740,6 +781,7 @@ class SpringSystem:
         self._fs = np.empty((s, 3))
         self._zero_c = np.zeros(s)
         self._zero_k = np.zeros(s)
+        self._zero_g = np.zeros(3)
         self._pairs32 = self.pairs.astype(np.int32)
         self._f_scratch = None
         self._pattern = None
@@ -776,22 +818,24 @@ class SpringSystem:
             penalty_friction(v, self._fc, self._mu, self.inv_mass, float(h))
 
     # -- forces and energies --------------------------------------------------------------
+    def _force_kernel(self, x, v, ke, c, mode, gravity, drag, f):
+        """Spring + gravity + drag forces into ``f`` (per-spring forces gathered per particle:
+        every particle's sum in a fixed order, which keeps the momentum test's round-off)."""
+        with _threads(self.pairs.shape[0]):
+            _total_forces(x, v, self.pairs, ke, self.rest, c, mode, self.inc_ptr,
+                          self.inc_spring, self.inc_sign, self.masses, gravity, drag, self._fs,
+                          f)
+
     def forces(self, x, v, out=None):
         """Total force (N) on every particle: springs, damping, gravity and drag, (N, 3)."""
         f = np.empty_like(x) if out is None else out
-        with _threads(self.pairs.shape[0]):
-            _total_forces(x, v, self.pairs, self.ke, self.rest, self.damping, self.mode,
-                      self.inc_ptr, self.inc_spring, self.inc_sign, self.masses, self.gravity,
-                      self.drag, self._fs, f)
+        self._force_kernel(x, v, self.ke, self.damping, self.mode, self.gravity, self.drag, f)
         return f
 
     def conservative_forces(self, x, out=None):
         """Spring elastic forces plus gravity (no damping), (N, 3)."""
         f = np.empty_like(x) if out is None else out
-        with _threads(self.pairs.shape[0]):
-            _total_forces(x, x, self.pairs, self.ke, self.rest, self._zero_c, 1,
-                          self.inc_ptr, self.inc_spring, self.inc_sign, self.masses,
-                          self.gravity, 0.0, self._fs, f)
+        self._force_kernel(x, x, self.ke, self._zero_c, 1, self.gravity, 0.0, f)
         if self.colliders is not None:
             self._contacts(x)
             f += self._fc
@@ -806,23 +850,24 @@ class SpringSystem:
         if self._undamped:
             f[...] = 0.0
             return f
-        zero_g = np.zeros(3)
-        with _threads(self.pairs.shape[0]):
-            _total_forces(xdir, v, self.pairs, self._zero_k, self.rest, self.damping,
-                          self.mode, self.inc_ptr, self.inc_spring, self.inc_sign, self.masses,
-                          zero_g, self.drag, self._fs, f)
+        self._force_kernel(xdir, v, self._zero_k, self.damping, self.mode, self._zero_g,
+                           self.drag, f)
         return f
 
     def potential_energy(self, x):
         """Elastic plus gravitational potential energy (J)."""
-        with _threads(self.pairs.shape[0]):
+        if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS:
+            elastic = _elastic_energy_serial(x, self.pairs, self.ke, self.rest)
+        else:
             elastic = _elastic_energy(x, self.pairs, self.ke, self.rest)
         contact = self._contacts(x) if self.colliders is not None else 0.0
-        return float(elastic + contact - np.dot(self.masses, x @ self.gravity))
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        return float(elastic + contact + _point_energies(x, x, self.masses, self.gravity)[1])
 
     def kinetic_energy(self, v):
         """Kinetic energy (J)."""
-        return 0.5 * float(np.dot(self.masses, np.einsum("ij,ij->i", v, v)))
+        v = np.ascontiguousarray(v, dtype=np.float64)
+        return float(_point_energies(v, v, self.masses, self.gravity)[0])
 
     def energy(self, x, v):
         """Total mechanical energy (J)."""
@@ -932,14 +977,24 @@ class SpringSystem:
         SpringOperator
         """
         if self._operator is None:
+            # The operator keeps its springs in upper-incidence order (sorted by their lower
+            # end point), which makes every sweep over them a sequential stream.
             n = self.n_points
             s = self.pairs.shape[0]
-            self._operator = SpringOperator(self.pairs, np.where(self.pinned, 0.0, 1.0),
+            lo = np.minimum(self.pairs[:, 0], self.pairs[:, 1])
+            hi = np.maximum(self.pairs[:, 0], self.pairs[:, 1])
+            order = np.lexsort((hi, lo))
+            pairs = np.ascontiguousarray(np.stack([lo[order], hi[order]], axis=1))
+            self._op_params = tuple(np.ascontiguousarray(a[order])
+                                    for a in (self.ke, self.rest, self.damping))
+            inc_ptr, inc_spring, _, inc_other = _incidence(pairs, n)
+            self._operator = SpringOperator(pairs, np.where(self.pinned, 0.0, 1.0),
                                             np.empty((s, 6)), np.empty((n, 3, 3)),
-                                            self.inc_ptr, self.inc_spring, self.inc_other)
+                                            inc_ptr, inc_spring, inc_other)
         op = self._operator
-        _operator_coefficients(x, xdir, self.pairs, self.ke, self.rest, self.damping, self.mode,
-                               float(h), op.blocks)
+        ke, rest, damping = self._op_params
+        _operator_coefficients(x, xdir, op.pairs, ke, rest, damping, self.mode, float(h),
+                               op.blocks)
         if self.colliders is not None:
             self._contacts(x)
             blocks = self._cb

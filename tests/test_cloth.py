@@ -30,32 +30,64 @@ def test_symplectic_euler_on_stiff_cloth_raises_instability():
 
 
 @pytest.mark.parametrize("h", [1.0 / 60.0, 1.0 / 30.0])
-def test_newton_on_64x64_stiff_cloth_never_gains_energy(h):
-    # Two steps each (a 64x64 Newton step is ~5-10 sparse factorisations of 12,288 unknowns,
-    # 0.2-0.5 s each here); settling is checked on a 16x16 cloth below.
-    sim = _stiff_cloth(64, "newton", solver="direct")
-    e = sim.energy()
-    for _ in range(2):
-        sim.step(h)
-        e_new = sim.energy()
-        assert e_new <= e + 1e-9 * abs(e)
-        e = e_new
-    assert sim.state.positions[:, 2].min() < 2.0  # it is falling
+def test_newton_64x64_stiff_cloth_never_gains_energy_and_settles_on_its_pins(h):
+    """The issue's stiff-cloth case at full size: 64x64 particles, k = 1e5, pinned at two corners
+    of one edge, released horizontal; backward Euler by Newton with line search.
 
+    Choices the issue leaves open, and why:
 
-@pytest.mark.parametrize("h", [1.0 / 60.0, 1.0 / 30.0])
-def test_newton_stiff_cloth_settles_with_pins_carrying_the_weight(h):
-    n = 12
-    sim = _stiff_cloth(n, "newton", solver="direct", damping=2.0, drag=0.3, newton_tol=1e-4,
-                       max_newton=30)
-    e = sim.energy()
-    steps = int(round(4.0 / h))
+    * Size and mass: a 6.3 m square heavy truck tarpaulin (0.1 m cells, as in NVIDIA Warp's
+      cloth example), 1 kg/m^2 (PVC-coated polyester tarps weigh 0.6-1 kg/m^2).  With
+      seed-form k = 1e5 N every structural spring has k_e = k / L = 1e6 N/m and the sheet a
+      membrane stiffness E t ~ k / L ~ 1e6 N/m, that of coated polyester or sailcloth;
+      ``k_e h^2 / m`` = 2.8e4 (h = 1/60) and 1.1e5 (h = 1/30): an explicit scheme would need
+      steps below ~0.1 ms, and the implicit solves are genuinely stiff (60 SSOR-PCG
+      iterations per Newton iteration on average, up to ~130 while it swings).  A 1 m,
+      0.2 kg/m^2 cloth with the same k is a steel foil (E t ~ 6e6 N/m,
+      ``k_e h^2 / m`` = 1.4e8): there, Newton with the definite (clamped) spring Hessians did
+      not converge in 10 iterations per step and the energy grew (measured: 64x64 at
+      h = 1/30, 37-47 s for 2-3 s of motion, speeds growing to 6-9 m/s).
+    * Damping: only the simplified per-particle drag ``-D v_i`` (no spring damping), with
+      ``D / m = 3 1/s``, about critical for the swing about the pin line (a sheet hanging from an
+      edge is a physical pendulum, ``w^2 = 1.5 g / W``, ``w`` = 1.5 rad/s for W = 6.3 m; critical
+      ``D / m = 2 w``) and of the order of real air drag on a tarp moving at 1 m/s
+      (``rho_air C_d |v| / rho_cloth`` ~ 1.2 1/s).  Less drag swings longer, more creeps
+      longer (measured on a heavier sheet: D/m = 4 leaves 0.12 m/s after 8 s); 7 s of motion
+      then leave ``|v| < 0.1 m/s``.
+    * Newton tolerance 2 cm/s on ``max |d| / h`` (a 6 m cloth moving at up to 3 m/s; 1 cm/s
+      took 1.4x the time with the same outcome in a trial), at most 30 iterations; the line
+      search still only accepts decreases of the incremental potential, and the energy
+      assertion below holds with a wide margin (every step lowered the energy by at least
+      7e-7 of it).
+
+    Asserted: the total energy (kinetic + elastic + gravitational) never increases from one step
+    to the next (drag only removes energy); the kinetic energy falls below 1e-5 of the energy
+    dissipated and decreases monotonically over the last second (it stays down); the springs
+    pull on the two pins with the cloth's whole weight (1%), horizontal pulls cancelling (1%).
+    Measured (2 shared cores, SSOR-preconditioned Newton-PCG): h = 1/30: 210 steps in 15 s,
+    3.6 Newton iterations and 233 PCG iterations per step; h = 1/60: 420 steps in 22 s, 2.9
+    and 175; at the end |v| < 5.3 cm/s, kinetic energy 2-3 mJ (of ~1.2 kJ dissipated), pins
+    carrying the weight to 0.03 %, horizontal pulls 0.2 % of it.
+    """
+    n = 64
+    rho = 1.0  # kg/m^2
+    sim = ClothSimulation.grid(n, n, size=((n - 1) * CELL, (n - 1) * CELL), origin=(0, 0, 2.0),
+                               pinned=[0, n - 1], areal_density=rho, stretch_stiffness=K,
+                               drag=3.0 * rho * CELL * CELL, newton_tol=2e-2, max_newton=30)
+    e0 = e = sim.energy()
+    steps = int(round(7.0 / h))
+    kinetic = []
     for _ in range(steps):
         sim.step(h)
         e_new = sim.energy()
         assert e_new <= e + 1e-9 * abs(e)
         e = e_new
-    assert np.abs(sim.state.velocities).max() < 2e-2
+        kinetic.append(sim.system.kinetic_energy(sim.state.velocities))
+    assert sim.state.positions[:, 2].min() < 2.0 - 0.8 * (n - 1) * CELL  # it hangs down
+    last = np.array(kinetic[-int(round(1.0 / h)):])
+    assert last[-1] < 1e-5 * (e0 - e)
+    assert np.all(np.diff(last) <= 0.0)
+    assert np.abs(sim.state.velocities).max() < 0.1
     weight = sim.system.masses[~sim.system.pinned].sum() * 9.81
     f = sim.pin_forces()  # what the cloth pulls on the pins: its whole weight, downwards
     assert -f[:, 2].sum() == pytest.approx(weight, rel=1e-2)
