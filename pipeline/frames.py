@@ -179,12 +179,15 @@ def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, des
                                      key=f"{desc}-{i}-{token}"): (i, t) for i, t, args in jobs}
             for future in as_completed(futures):
                 i, t = futures[future]
-                if future.status == "finished":
-                    infos.append(future.result())
-                    bar.update(1)
-                else:
-                    exc = future.exception()
+                try:
+                    # result(), not the status: a finished result held by a worker that dies
+                    # right after is lost and recomputed, and result() waits for that
+                    info = future.result()
+                except Exception as exc:  # noqa: BLE001 - reported per frame
                     failures.append(FrameFailure(i, t, f"{type(exc).__name__}: {exc}"))
+                else:
+                    infos.append(info)
+                    bar.update(1)
     finally:
         bar.close()
     return infos, sorted(failures, key=lambda f: f.index)
