@@ -22,7 +22,7 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
           depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.01,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
           cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
-          anisotropic: bool = True) -> Flow:
+          anisotropic: bool = False) -> Flow:
     """Build the dam-break flow (about 2,000 fluid particles with the defaults).
 
     Parameters
@@ -53,8 +53,9 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
     anisotropic : bool
-        Anisotropic kernels for the surface (Yu & Turk 2013): flat water instead of bubble
-        wrap, for about 1.2x the surface time; False splats isotropic SPH kernels.
+        Anisotropic kernels for the surface (Yu & Turk 2013), about 1.2x the surface time;
+        flatter on lattice-like particles, no flatter on settled SPH liquid (see
+        ``scenes/liquid_surface.py``).
     """
     simulation = dam_break_liquid(
         column_width=column_width, column_height=column_height, tank_length=tank_length,

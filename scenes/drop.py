@@ -20,7 +20,7 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
           surface_tension: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
-          anisotropic: bool = True) -> Flow:
+          anisotropic: bool = False) -> Flow:
     """Build the drop flow (about 2,500 fluid particles with the defaults).
 
     Parameters
@@ -50,8 +50,9 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
     anisotropic : bool
-        Anisotropic kernels for the surface (Yu & Turk 2013): flat water instead of bubble
-        wrap, for about 1.2x the surface time; False splats isotropic SPH kernels.
+        Anisotropic kernels for the surface (Yu & Turk 2013), about 1.2x the surface time;
+        flatter on lattice-like particles, no flatter on settled SPH liquid (see
+        ``scenes/liquid_surface.py``).
     """
     simulation = drop_liquid(
         tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,
