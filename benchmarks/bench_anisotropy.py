@@ -430,6 +430,8 @@ def render(meshes, pool, path):
     """The top of the lattice pool with four methods side by side (offscreen)."""
     import pyvista as pv
 
+    import pipeline.render  # noqa: F401 - chooses EGL / OSMesa without trying an X server
+
     pv.OFF_SCREEN = True
     names = ("isotropic", "anisotropic", "anisotropic+smooth", "splashsurf_smoothed")
     plotter = pv.Plotter(off_screen=True, shape=(1, len(names)), window_size=(2400, 700))
