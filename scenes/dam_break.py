@@ -53,8 +53,8 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
     anisotropic : bool
-        Anisotropic kernels for the surface (Yu & Turk 2013), about 1.2x the surface time;
-        flatter on lattice-like particles, no flatter on settled SPH liquid (see
+        Surface from anisotropic kernels (Yu & Turk 2013); about 1.2x the surface time.
+        Flatter on lattice-like particles, no flatter on settled SPH liquid (see
         ``scenes/liquid_surface.py``).
     """
     simulation = dam_break_liquid(
