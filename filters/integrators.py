@@ -630,6 +630,33 @@ def _ssor_setup(free, blocks, diag, up_ptr, up_spring, up_other, omega, dsc, din
 
 
 @njit(cache=True, inline="always")
+def _pull(up_ptr, up_other, ublk, t, i):
+    """``sum_j U_ij t_j`` over the springs stored with particle ``i`` (gather form)."""
+    q0 = 0.0
+    q1 = 0.0
+    q2 = 0.0
+    for p in range(up_ptr[i], up_ptr[i + 1]):
+        j = up_other[p]
+        k0, k1, k2 = _apply_spring(ublk, p, t[j, 0], t[j, 1], t[j, 2])
+        q0 += k0
+        q1 += k1
+        q2 += k2
+    return q0, q1, q2
+
+
+@njit(cache=True, inline="always")
+def _push(up_ptr, up_other, ublk, i, y0, y1, y2, sign, acc):
+    """``acc_j += sign U_ji y`` for the springs stored with particle ``i`` (scatter form;
+    ``sign`` is +1 or -1, so the sums are the same floating-point operations as ``+=`` / ``-=``)."""
+    for p in range(up_ptr[i], up_ptr[i + 1]):
+        j = up_other[p]
+        k0, k1, k2 = _apply_spring(ublk, p, y0, y1, y2)
+        acc[j, 0] += sign * k0
+        acc[j, 1] += sign * k1
+        acc[j, 2] += sign * k2
+
+
+@njit(cache=True, inline="always")
 def _mul3(m, i, a0, a1, a2):
     return (m[i, 0, 0] * a0 + m[i, 0, 1] * a1 + m[i, 0, 2] * a2,
             m[i, 1, 0] * a0 + m[i, 1, 1] * a1 + m[i, 1, 2] * a2,
@@ -666,15 +693,7 @@ def _ssor_apply(up_ptr, up_other, ublk, dinv, free, omega, r, beta, a, t, q, acc
             q[i, 1] = 0.0
             q[i, 2] = 0.0
             continue
-        q0 = 0.0
-        q1 = 0.0
-        q2 = 0.0
-        for p in range(up_ptr[i], up_ptr[i + 1]):
-            j = up_other[p]
-            k0, k1, k2 = _apply_spring(ublk, p, t[j, 0], t[j, 1], t[j, 2])
-            q0 += k0
-            q1 += k1
-            q2 += k2
+        q0, q1, q2 = _pull(up_ptr, up_other, ublk, t, i)
         q[i, 0] = q0
         q[i, 1] = q1
         q[i, 2] = q2
@@ -691,12 +710,7 @@ def _ssor_apply(up_ptr, up_other, ublk, dinv, free, omega, r, beta, a, t, q, acc
         y0, y1, y2 = _mul3(dinv, i, c1 * a[i, 0] - c2 * q[i, 0] + acc[i, 0],
                            c1 * a[i, 1] - c2 * q[i, 1] + acc[i, 1],
                            c1 * a[i, 2] - c2 * q[i, 2] + acc[i, 2])
-        for p in range(up_ptr[i], up_ptr[i + 1]):
-            j = up_other[p]
-            k0, k1, k2 = _apply_spring(ublk, p, y0, y1, y2)
-            acc[j, 0] += k0
-            acc[j, 1] += k1
-            acc[j, 2] += k2
+        _push(up_ptr, up_other, ublk, i, y0, y1, y2, 1.0, acc)
         w0 = omega * a[i, 0] + c1 * q[i, 0] + acc[i, 0]
         w1 = omega * a[i, 1] + c1 * q[i, 1] + acc[i, 1]
         w2 = omega * a[i, 2] + c1 * q[i, 2] + acc[i, 2]
@@ -727,12 +741,7 @@ def _ssor_forward(up_ptr, up_other, ublk, dinv, free, s, y, acc):
         y[i, 0] = y0
         y[i, 1] = y1
         y[i, 2] = y2
-        for p in range(up_ptr[i], up_ptr[i + 1]):
-            j = up_other[p]
-            k0, k1, k2 = _apply_spring(ublk, p, y0, y1, y2)
-            acc[j, 0] += k0
-            acc[j, 1] += k1
-            acc[j, 2] += k2
+        _push(up_ptr, up_other, ublk, i, y0, y1, y2, 1.0, acc)
 
 
 @njit(cache=True)
@@ -744,15 +753,7 @@ def _ssor_backward(up_ptr, up_other, ublk, dinv, free, a, t):
             t[i, 1] = 0.0
             t[i, 2] = 0.0
             continue
-        q0 = 0.0
-        q1 = 0.0
-        q2 = 0.0
-        for p in range(up_ptr[i], up_ptr[i + 1]):
-            j = up_other[p]
-            k0, k1, k2 = _apply_spring(ublk, p, t[j, 0], t[j, 1], t[j, 2])
-            q0 += k0
-            q1 += k1
-            q2 += k2
+        q0, q1, q2 = _pull(up_ptr, up_other, ublk, t, i)
         t[i, 0], t[i, 1], t[i, 2] = _mul3(dinv, i, a[i, 0] + q0, a[i, 1] + q1, a[i, 2] + q2)
 
 
@@ -767,12 +768,7 @@ def _ssor_unscale(up_ptr, up_other, ublk, dinv, free, rt, out):
         out[i, 2] = rt[i, 2]
     for i in range(n):
         z0, z1, z2 = _mul3(dinv, i, rt[i, 0], rt[i, 1], rt[i, 2])
-        for p in range(up_ptr[i], up_ptr[i + 1]):
-            j = up_other[p]
-            k0, k1, k2 = _apply_spring(ublk, p, z0, z1, z2)
-            out[j, 0] -= k0
-            out[j, 1] -= k1
-            out[j, 2] -= k2
+        _push(up_ptr, up_other, ublk, i, z0, z1, z2, -1.0, out)
     acc = 0.0
     for i in range(n):
         if free[i] == 0.0:
