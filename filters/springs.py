@@ -234,22 +234,28 @@ def _symplectic_kernel(x, v, pairs, ke, rest, c, mode, inc_ptr, inc_spring, inc_
     return math.sqrt(vmax)
 
 
+@njit(cache=True, inline="always")
+def _spring_energy(x, pairs, ke, rest, s):
+    """Elastic energy (J) of spring ``s``: ``k_e (|x_ab| - L)^2 / 2`` (``k_e |x_ab|^2 / 2`` at
+    zero rest length)."""
+    a = pairs[s, 0]
+    b = pairs[s, 1]
+    d0 = x[a, 0] - x[b, 0]
+    d1 = x[a, 1] - x[b, 1]
+    d2 = x[a, 2] - x[b, 2]
+    l2 = d0 * d0 + d1 * d1 + d2 * d2
+    if rest[s] == 0.0:
+        return 0.5 * ke[s] * l2
+    dl = math.sqrt(l2) - rest[s]
+    return 0.5 * ke[s] * dl * dl
+
+
 @njit(cache=True)
 def _elastic_energy_serial(x, pairs, ke, rest):
     """Serial :func:`_elastic_energy` (below :data:`PARALLEL_MIN_SPRINGS` springs)."""
     e = 0.0
     for s in range(pairs.shape[0]):
-        a = pairs[s, 0]
-        b = pairs[s, 1]
-        d0 = x[a, 0] - x[b, 0]
-        d1 = x[a, 1] - x[b, 1]
-        d2 = x[a, 2] - x[b, 2]
-        l2 = d0 * d0 + d1 * d1 + d2 * d2
-        if rest[s] == 0.0:
-            e += 0.5 * ke[s] * l2
-        else:
-            dl = math.sqrt(l2) - rest[s]
-            e += 0.5 * ke[s] * dl * dl
+        e += _spring_energy(x, pairs, ke, rest, s)
     return e
 
 
@@ -270,17 +276,7 @@ def _point_energies(x, v, masses, gravity):
 def _elastic_energy(x, pairs, ke, rest):
     e = 0.0
     for s in prange(pairs.shape[0]):
-        a = pairs[s, 0]
-        b = pairs[s, 1]
-        d0 = x[a, 0] - x[b, 0]
-        d1 = x[a, 1] - x[b, 1]
-        d2 = x[a, 2] - x[b, 2]
-        l2 = d0 * d0 + d1 * d1 + d2 * d2
-        if rest[s] == 0.0:
-            e += 0.5 * ke[s] * l2
-        else:
-            dl = math.sqrt(l2) - rest[s]
-            e += 0.5 * ke[s] * dl * dl
+        e += _spring_energy(x, pairs, ke, rest, s)
     return e
 
 
