@@ -284,9 +284,13 @@ def _cmd_run(args) -> int:
         print(f"blobflow: the frames written before the failure are valid in {out}", file=sys.stderr)
         return 1
     if not args.no_render:
-        from .render import render_run
+        from .render import RenderUnavailableError, render_run
 
-        paths.update(render_run(paths.values(), out, progress=not args.quiet))
+        try:
+            paths.update(render_run(paths.values(), out, progress=not args.quiet))
+        except RenderUnavailableError as exc:
+            # the series are the run's result; pictures need a system library
+            print(f"blobflow: rendering skipped: {exc}", file=sys.stderr)
     print(f"wrote {len(flow.times)} frames of scene {scene.name!r} to {out}/")
     for name, path in paths.items():
         print(f"  {name}: {path}")
@@ -295,7 +299,7 @@ def _cmd_run(args) -> int:
 
 # -- render -------------------------------------------------------------------------------------
 def _cmd_render(args) -> int:
-    from .render import parse_size, timelapse, turntable
+    from .render import RenderUnavailableError, parse_size, timelapse, turntable
     from .series import SeriesError, read_collection
 
     paths = [Path(p) for p in args.series]
@@ -330,7 +334,7 @@ def _cmd_render(args) -> int:
         else:
             result = timelapse(paths, out, orbit=args.orbit, size=size, color_by=args.color_by,
                                fps=args.fps, progress=not args.quiet)
-    except (SeriesError, ValueError, IndexError) as exc:
+    except (SeriesError, ValueError, IndexError, RenderUnavailableError) as exc:
         raise UsageError(str(exc)) from None
     finally:
         _close(client)

@@ -20,12 +20,44 @@ from typing import Sequence
 
 import numpy as np
 
+#: Debian packages that give VTK an offscreen OpenGL (what ``.ci/run`` installs).
+GL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri (or libosmesa6)"
+
+
+def _loadable(name: str) -> bool:
+    """Whether the shared library ``lib<name>`` can be loaded (not just listed in a cache)."""
+    path = ctypes.util.find_library(name)
+    if path is None:
+        return False
+    try:
+        ctypes.CDLL(path)
+    except OSError:
+        return False
+    return True
+
+
+def _offscreen_window() -> str | None:
+    """VTK render window class for rendering with no display: EGL where libEGL and a Mesa EGL
+    vendor are installed, else OSMesa, else None (nothing can render here)."""
+    vendors = ("/usr/share/glvnd/egl_vendor.d", "/etc/glvnd/egl_vendor.d")
+    if _loadable("EGL") and any(Path(d).is_dir() and any(Path(d).glob("*.json"))
+                                for d in vendors):
+        return "vtkEGLRenderWindow"
+    if _loadable("OSMesa"):
+        return "vtkOSOpenGLRenderWindow"
+    return None
+
+
 if not os.environ.get("DISPLAY") and "VTK_DEFAULT_OPENGL_WINDOW" not in os.environ:
     # Skip VTK's attempt at an X server (a warning on stderr) and go straight to EGL, or to
-    # OSMesa where no EGL library is installed.
-    os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = (
-        "vtkEGLRenderWindow" if ctypes.util.find_library("EGL") else "vtkOSOpenGLRenderWindow"
-    )
+    # OSMesa where no EGL library is installed. With neither, VTK would crash creating a
+    # window: Renderer raises RenderUnavailableError instead.
+    _WINDOW = _offscreen_window()
+    if _WINDOW is not None:
+        os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = _WINDOW
+    _CAN_RENDER = _WINDOW is not None
+else:
+    _CAN_RENDER = True
 
 import pyvista as pv  # noqa: E402
 from vtkmodules.util import numpy_support  # noqa: E402
@@ -33,9 +65,18 @@ from tqdm.auto import tqdm  # noqa: E402
 
 from .series import read_collection, read_frame  # noqa: E402
 
-__all__ = ["Renderer", "turntable", "timelapse", "write_movie", "parse_size", "MOVIE_SUFFIXES"]
+__all__ = ["Renderer", "RenderUnavailableError", "turntable", "timelapse", "write_movie",
+           "parse_size", "MOVIE_SUFFIXES"]
 
 MOVIE_SUFFIXES = (".gif", ".mp4")
+
+
+class RenderUnavailableError(RuntimeError):
+    """No OpenGL library for offscreen rendering is installed (and there is no display)."""
+
+    def __init__(self):
+        super().__init__(f"cannot render: no display and no offscreen OpenGL (EGL or OSMesa); on "
+                         f"Debian/Ubuntu install {GL_PACKAGES}")
 WATER = "#2a7fcf"
 SOLID = "#d9774f"
 HAIR = "#6b4226"
@@ -122,6 +163,8 @@ class Renderer:
         For a missing or malformed series.
     ValueError
         If ``color_by`` names no point array of the series.
+    RenderUnavailableError
+        With no display and neither EGL nor OSMesa installed (VTK would crash).
     """
 
     def __init__(self, series: Sequence, *, size=(640, 480), color_by: str | None = None,
@@ -131,6 +174,8 @@ class Renderer:
             series = [series]
         if not series:
             raise ValueError("series must name at least one .pvd or .series file")
+        if not _CAN_RENDER:
+            raise RenderUnavailableError()
         self.layers = []
         for path in series:
             path = Path(path)

@@ -11,7 +11,7 @@ from pipeline import Flow, SimulationSource
 from pipeline.cli import main
 from pipeline.render import Renderer, parse_size, timelapse, turntable
 from pipeline.scene import available_scenes, load_scene
-from pipeline.series import SeriesWriter
+from pipeline.series import SeriesWriter, read_series
 
 from _helpers import ballistic
 
@@ -136,6 +136,25 @@ def test_cli_render_missing_or_malformed_series(tmp_path, capsys, content):
     code = main(["render", str(path), "--out", str(tmp_path / "x.gif"), "-q"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and err.startswith("blobflow: error: ")
+    assert not (tmp_path / "x.gif").exists()
+
+
+def test_without_offscreen_opengl_run_keeps_its_series_and_render_says_why(tmp_path, capsys,
+                                                                             monkeypatch):
+    # where neither EGL nor OSMesa is installed VTK crashes creating a window: measured, a
+    # segmentation fault; blobflow must stop before that and say which packages are missing
+    import pipeline.render as render
+
+    monkeypatch.setattr(render, "_CAN_RENDER", False)
+    out = tmp_path / "run"
+    code = main(["run", "bouncing", "--frames", "3", "--set", "count=4", "--out", str(out), "-q"])
+    err = capsys.readouterr().err
+    assert code == 0 and "rendering skipped" in err and "libegl1" in err
+    assert len(read_series(out / "particles.pvd")[0]) == 3
+    assert not list(out.glob("*.gif")) and not list(out.glob("*.mp4"))
+    code = main(["render", str(out / "particles.pvd"), "--out", str(tmp_path / "x.gif"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "libosmesa6" in err
     assert not (tmp_path / "x.gif").exists()
 
 
