@@ -778,6 +778,40 @@ def _grid(positions, radius, cell_size, kernel, support, iso, block_size, blobbi
         out = (bound < 0) | ((bound < iso) if kid != _ZB else False)
         states[rest[out]] = 0
         del bound, rest, out
+    if kid == _ZB:
+        def evaluate(targets, data, first):
+            _evaluate(targets, data, first, bsz, P, Hs, A, Rs, start, table, ranks, reach, kid,
+                      ba, be, iso32, far32)
+    else:
+        def evaluate(targets, data, first):
+            _evaluate_sum(targets, data, first, bsz, P, Hs, A, start, table, ranks, reach, hmax,
+                          kid, ba, be, iso32)
+    return evaluate_rounds(active, states, evaluate, cell_size, bsz, inside_value,
+                           outside_value, max_bytes)
+
+
+def evaluate_rounds(active, states, evaluate, cell_size, bsz, inside_value, outside_value,
+                    max_bytes) -> SparseGrid:
+    """Evaluate the candidate blocks still undecided, then those the face check flags, round by
+    round, and return the grid (shared by the isotropic and the anisotropic splat).
+
+    Parameters
+    ----------
+    active : (K,) int64
+        Sorted keys of the candidate blocks.
+    states : (K,) int8
+        Per block: 0 outside, 1 inside, 2 to evaluate (updated in place).
+    evaluate : callable
+        ``evaluate(targets, data, first)`` fills ``data[first + t]`` with the implicit values of
+        block ``targets[t]``.
+    cell_size : float
+    bsz : int
+        Voxels per block edge.
+    inside_value, outside_value : float
+        Values of the blocks left unevaluated inside / outside.
+    max_bytes : int
+        Memory budget (bytes) for the evaluated blocks.
+    """
     atable, aranks, _, _ = _index_keys(active)
     _interior_closure(active, states, atable, aranks)
     block_bytes = 4 * bsz**3
@@ -792,12 +826,7 @@ def _grid(positions, radius, cell_size, kernel, support, iso, block_size, blobbi
         need = count + todo.size
         check_budget(need * block_bytes, max_bytes, f"{need} blocks of {bsz}^3 voxels")
         targets = active[todo]
-        if kid == _ZB:
-            _evaluate(targets, data, count, bsz, P, Hs, A, Rs, start, table, ranks, reach, kid,
-                      ba, be, iso32, far32)
-        else:
-            _evaluate_sum(targets, data, count, bsz, P, Hs, A, start, table, ranks, reach, hmax,
-                          kid, ba, be, iso32)
+        evaluate(targets, data, count)
         done_keys[count:need] = targets
         flags = _mismatches(targets, data[count:need], bsz, atable, aranks, states)
         count = need
@@ -805,7 +834,6 @@ def _grid(positions, radius, cell_size, kernel, support, iso, block_size, blobbi
         states[flagged] = 2
         # newly evaluated inside blocks may expose inside neighbours to outside ones
         todo = flagged
-    del P, Hs, A
     # keys stay in evaluation order (deterministic: sorted candidates, then sorted rounds of
     # additions); no copy of the data
     return SparseGrid(cell_size, bsz, done_keys[:count], data[:count],

@@ -63,7 +63,7 @@ from .sparse_grid import (
     unpack_keys,
 )
 from .splat import DEFAULTS as SPLAT_DEFAULTS
-from .splat import _counting_sort, _home_keys, _interior_closure, _mismatches, _row_kernel
+from .splat import _counting_sort, _home_keys, _row_kernel, evaluate_rounds
 from .validation import check_choice, check_int, check_points, check_range
 
 __all__ = [
@@ -515,28 +515,12 @@ def _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
                               ba, be, iso)
         states[rest[bound < iso]] = 0
         del bound, rest
-    atable, aranks, _, _ = _index_keys(active)
-    _interior_closure(active, states, atable, aranks)
-    block_bytes = 4 * bsz**3
-    todo = np.flatnonzero(states == 2)
-    count = 0
-    capacity = min(active.size, max_bytes // block_bytes + 1)
-    data = np.empty((capacity, bsz, bsz, bsz), np.float32)
-    done_keys = np.empty(capacity, np.int64)
-    while todo.size:
-        need = count + todo.size
-        check_budget(need * block_bytes, max_bytes, f"{need} blocks of {bsz}^3 voxels")
-        targets = active[todo]
-        _evaluate_blocks(targets, data, count, bsz, P, M6, E, SR, BE, A, start, table, ranks,
+
+    def evaluate(targets, data, first):
+        _evaluate_blocks(targets, data, first, bsz, P, M6, E, SR, BE, A, start, table, ranks,
                          reach, kid, ba, be, iso32)
-        done_keys[count:need] = targets
-        flags = _mismatches(targets, data[count:need], bsz, atable, aranks, states)
-        count = need
-        flagged = np.unique(flags[flags >= 0])
-        states[flagged] = 2
-        todo = flagged
-    return SparseGrid(cell_size, bsz, done_keys[:count], data[:count],
-                      np.sort(active[states == 1]), -iso, iso)
+
+    return evaluate_rounds(active, states, evaluate, cell_size, bsz, -iso, iso, max_bytes)
 
 
 def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "sph",
