@@ -164,19 +164,23 @@ def _per_spring_forces(x, v, pairs, ke, rest, c, mode, fs):
                       ke[s], rest[s], c[s], mode, fs[s])
 
 
+@njit(cache=True, inline="always")
+def _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2):
+    """``(a0, a1, a2) + sum of sign * fs[s]`` over the springs incident to particle ``i``."""
+    for p in range(inc_ptr[i], inc_ptr[i + 1]):
+        s = inc_spring[p]
+        sg = inc_sign[p]
+        a0 += sg * fs[s, 0]
+        a1 += sg * fs[s, 1]
+        a2 += sg * fs[s, 2]
+    return a0, a1, a2
+
+
 @njit(parallel=True, cache=True)
 def _gather(fs, inc_ptr, inc_spring, inc_sign, f):
     """f[i] = sum over incident springs of sign * fs[s] (no races: one thread per particle)."""
     for i in prange(f.shape[0]):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for p in range(inc_ptr[i], inc_ptr[i + 1]):
-            s = inc_spring[p]
-            sg = inc_sign[p]
-            a0 += sg * fs[s, 0]
-            a1 += sg * fs[s, 1]
-            a2 += sg * fs[s, 2]
+        a0, a1, a2 = _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, 0.0, 0.0, 0.0)
         f[i, 0] = a0
         f[i, 1] = a1
         f[i, 2] = a2
@@ -193,12 +197,7 @@ def _total_forces(x, v, pairs, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign,
         a0 = masses[i] * gravity[0] - drag * v[i, 0]
         a1 = masses[i] * gravity[1] - drag * v[i, 1]
         a2 = masses[i] * gravity[2] - drag * v[i, 2]
-        for p in range(inc_ptr[i], inc_ptr[i + 1]):
-            s = inc_spring[p]
-            sg = inc_sign[p]
-            a0 += sg * fs[s, 0]
-            a1 += sg * fs[s, 1]
-            a2 += sg * fs[s, 2]
+        a0, a1, a2 = _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
         f[i, 0] = a0
         f[i, 1] = a1
         f[i, 2] = a2
@@ -216,12 +215,7 @@ def _symplectic_kernel(x, v, pairs, ke, rest, c, mode, inc_ptr, inc_spring, inc_
         a0 = masses[i] * gravity[0] - drag * v[i, 0]
         a1 = masses[i] * gravity[1] - drag * v[i, 1]
         a2 = masses[i] * gravity[2] - drag * v[i, 2]
-        for p in range(inc_ptr[i], inc_ptr[i + 1]):
-            s = inc_spring[p]
-            sg = inc_sign[p]
-            a0 += sg * fs[s, 0]
-            a1 += sg * fs[s, 1]
-            a2 += sg * fs[s, 2]
+        a0, a1, a2 = _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
         w = h * inv_mass[i]
         v[i, 0] += w * a0
         v[i, 1] += w * a1
