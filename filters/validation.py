@@ -7,7 +7,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_range", "check_int", "check_finite_vector", "check_points", "check_choice"]
+__all__ = ["check_range", "check_int", "check_bool", "check_finite_vector", "check_points",
+           "check_choice"]
 
 
 def check_range(name: str, value, low: float = -math.inf, high: float = math.inf, *,
@@ -78,3 +79,11 @@ def check_choice(name: str, value, choices) -> str:
         options = ", ".join(repr(c) for c in choices)
         raise ValueError(f"{name} must be one of {options}; got {value!r}")
     return value
+
+
+def check_bool(name: str, value) -> bool:
+    """Return ``value`` as a bool if it is True or False (NumPy's too); anything else, such as
+    the string ``"false"`` that ``bool()`` would take for True, raises TypeError."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise TypeError(f"{name} must be True or False, got {value!r}")

@@ -49,7 +49,7 @@ from .algorithm import Algorithm
 from filters.sparse_grid import DEFAULT_MAX_BYTES, DenseField, SparseGrid
 from filters.splat import KERNELS, interpolate_attributes, splat_dense, splat_sparse
 from filters.surface_mesh import piece_flags, stitch
-from filters.validation import check_choice, check_int, check_range
+from filters.validation import check_bool, check_choice, check_int, check_range
 
 __all__ = [
     "MetaballSplat",
@@ -326,7 +326,7 @@ class MetaballSplat(Algorithm):
                  anisotropy: dict | None = None):
         from filters.splat_anisotropic import ANISOTROPIC_KERNELS
 
-        self.anisotropic = bool(anisotropic)
+        self.anisotropic = check_bool("anisotropic", anisotropic)
         if self.anisotropic and kernel not in ANISOTROPIC_KERNELS:
             raise ValueError(f"kernel must be one of {', '.join(map(repr, ANISOTROPIC_KERNELS))} "
                              f"when anisotropic=True, got {kernel!r}")

@@ -39,4 +39,4 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
     flow.add("surface", *surface_stages(radius=0.5 * spacing, smooth_iterations=smooth_iterations,
                                         pass_band=0.01, implicit=Box(tank_lo, tank_hi),
                                         operation="intersection",
-                                        anisotropic=bool(anisotropic)), input="particles")
+                                        anisotropic=anisotropic), input="particles")

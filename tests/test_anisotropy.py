@@ -315,3 +315,6 @@ def test_metaball_splat_stage_exposes_anisotropic_kernels():
     assert not (len(iso_points) == len(aniso_points) and np.allclose(iso_points, aniso_points))
     with pytest.raises(ValueError, match="anisotropic=True"):
         MetaballSplat(0.01, kernel="zhu_bridson", anisotropic=True)
+    # a string is not a flag: bool("false") would have turned the kernels on
+    with pytest.raises(TypeError, match="anisotropic must be True or False"):
+        MetaballSplat(0.01, anisotropic="false")
