@@ -500,16 +500,21 @@ class MarchingCubes(Algorithm):
         positions = get("positions").reshape(-1, 3)
         radius = get("radius")
         cell, kid, support, blob = get("settings")
-        out = {}
-        for name in attrs:
-            vals = get("attr:" + name)
-            if positions.shape[0] == 0 or pts.shape[0] == 0:
-                out[name] = np.zeros((pts.shape[0],) + vals.shape[1:], np.float64)
-                continue
-            out[name] = interpolate_attributes(
-                pts.astype(np.float64), positions, radius, vals, cell_size=float(cell),
-                kernel=KERNELS[int(kid)], support=None if np.isnan(support) else float(support),
-                blobbiness=float(blob))
+        values = [get("attr:" + name).astype(np.float64) for name in attrs]
+        columns = [v.reshape(v.shape[0], -1) for v in values]
+        if positions.shape[0] == 0 or pts.shape[0] == 0:
+            return {name: np.zeros((pts.shape[0],) + v.shape[1:], np.float64)
+                    for name, v in zip(attrs, values)}
+        # all attributes in one pass: the same kernel weights serve every column
+        stacked = interpolate_attributes(
+            pts.astype(np.float64), positions, radius, np.concatenate(columns, axis=1),
+            cell_size=float(cell), kernel=KERNELS[int(kid)],
+            support=None if np.isnan(support) else float(support), blobbiness=float(blob))
+        out, start = {}, 0
+        for name, v, c in zip(attrs, values, columns):
+            part = stacked[:, start:start + c.shape[1]]
+            out[name] = np.ascontiguousarray(part).reshape((pts.shape[0],) + v.shape[1:])
+            start += c.shape[1]
         return out
 
 
