@@ -133,8 +133,9 @@ def _dot(a, b):
 
 def _vdot(a, b):
     """``sum(a * b)`` of two float64 arrays in Numba: NumPy's ``vdot`` calls BLAS, whose
-    threads stall on the busy 2-core machine (a 12k-vector ``ddot`` up to 12 ms, see
-    DESIGN.md); the Newton loop takes several per iteration."""
+    threads stall on a busy 2-core machine (measured: a 12k-vector ``ddot`` up to 12 ms, and a
+    settle test 3-5x slower under pytest than as a script); the Newton loop takes several per
+    iteration."""
     return float(_dot(np.ascontiguousarray(a, dtype=np.float64).reshape(-1),
                       np.ascontiguousarray(b, dtype=np.float64).reshape(-1)))
 
