@@ -255,3 +255,44 @@ def test_per_particle_radius_and_container_clip():
         assert p[:, 2].max() == pytest.approx(0.05, abs=1e-6)
         flat = np.abs(p[:, 2] - 0.05) < 1e-6
         assert flat.sum() > 100  # a flat lid where the tank cuts the liquid
+
+
+def test_feature_smoothing_flattens_a_pool_and_keeps_the_mesh_valid():
+    # a jittered lattice pool: the top face gets flatter, the mesh stays closed, the
+    # velocity is interpolated at the smoothed vertices, and the stage equals the array filter
+    rng = np.random.default_rng(0)
+    g = np.stack(np.meshgrid(np.arange(14), np.arange(14), np.arange(5), indexing="ij"), -1)
+    x = g.reshape(-1, 3) * S + rng.uniform(-0.1 * S, 0.1 * S, (14 * 14 * 5, 3))
+    v = np.tile([0.5, 0.0, -1.0], (len(x), 1))
+    plain = _run([MetaballSplat(0.01), MarchingCubes()], _particles(x, v))
+    smooth = _run([MetaballSplat(0.01), MarchingCubes(feature_smoothing=25)], _particles(x, v))
+    p0, t0 = polydata_to_mesh(plain)
+    p1, t1 = polydata_to_mesh(smooth)
+    assert np.array_equal(t0, t1)
+    st = mesh_stats(p1, t1)
+    assert st.closed and st.manifold and st.components == 1
+    top = ((p0[:, 0] > 3 * S) & (p0[:, 0] < 10 * S) & (p0[:, 1] > 3 * S) & (p0[:, 1] < 10 * S)
+           & (p0[:, 2] > 3.5 * S))
+    assert top.sum() > 200
+    assert p1[top, 2].std() < 0.6 * p0[top, 2].std()
+    from filters.mesh_smoothing import smooth_surface
+
+    expected = smooth_surface(p0.astype(np.float64), t0, x, 0.01, iterations=25)
+    np.testing.assert_allclose(p1, expected, atol=1e-7)
+    vel = numpy_support.vtk_to_numpy(smooth.GetPointData().GetArray("velocity"))
+    np.testing.assert_allclose(vel, np.tile([0.5, 0.0, -1.0], (len(vel), 1)), rtol=1e-12)
+
+
+def test_feature_smoothing_needs_the_particles():
+    from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
+
+    src = vtkRTAnalyticSource()
+    mc = MarchingCubes(150.0, feature_smoothing=5)
+    mc.SetInputConnection(src.GetOutputPort())
+    mc.Update()
+    with pytest.raises(ValueError, match="feature_smoothing"):
+        raise_pending([mc])
+    with pytest.raises(ValueError, match="feature_smoothing"):
+        MarchingCubes(feature_smoothing=-1)
+    with pytest.raises(TypeError, match="interpolate"):
+        MarchingCubes(interpolate="no")
