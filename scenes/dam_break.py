@@ -22,7 +22,7 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
           depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.01,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
           cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
-          anisotropic: bool = False) -> Flow:
+          feature_smoothing: int = 25, anisotropic: bool = False) -> Flow:
     """Build the dam-break flow (about 2,000 fluid particles with the defaults).
 
     Parameters
@@ -52,6 +52,9 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
+    feature_smoothing : int
+        Feature-weighted Laplacian smoothing sweeps of the surface (0 to 10000): flat water
+        smoothed, droplets and sheets kept (see ``scenes/liquid_surface.py``).
     anisotropic : bool
         Surface from anisotropic kernels (Yu & Turk 2013); about 1.2x the surface time.
         Flatter on lattice-like particles, no flatter on settled SPH liquid (see
@@ -66,7 +69,7 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
                            tank_hi=(tank_length, depth, tank_height),
                            smooth_iterations=smooth_iterations,
-                           anisotropic=anisotropic)
+                           feature_smoothing=feature_smoothing, anisotropic=anisotropic)
     return flow
 
 

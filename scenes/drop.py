@@ -20,7 +20,7 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
           surface_tension: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
-          anisotropic: bool = False) -> Flow:
+          feature_smoothing: int = 25, anisotropic: bool = False) -> Flow:
     """Build the drop flow (about 2,500 fluid particles with the defaults).
 
     Parameters
@@ -49,6 +49,9 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
         Windowed-sinc smoothing iterations of the surface (0 to 10000).
+    feature_smoothing : int
+        Feature-weighted Laplacian smoothing sweeps of the surface (0 to 10000): flat water
+        smoothed, droplets and sheets kept (see ``scenes/liquid_surface.py``).
     anisotropic : bool
         Surface from anisotropic kernels (Yu & Turk 2013); about 1.2x the surface time.
         Flatter on lattice-like particles, no flatter on settled SPH liquid (see
@@ -64,7 +67,7 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
                            tank_hi=(tank_length, tank_width, tank_height),
                            smooth_iterations=smooth_iterations,
-                           anisotropic=anisotropic)
+                           feature_smoothing=feature_smoothing, anisotropic=anisotropic)
     return flow
 
 
