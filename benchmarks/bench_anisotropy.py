@@ -3,7 +3,7 @@
 The flatness / sharpness / cost benchmark of issue 8, one run, side by side on identical
 particles (spacing s = 0.02 m, particle radius 0.01 m, cell 0.005 m, SPH kernel of support
 4 r, iso 0.6 -- the settings of ``bench_surface.py``; the anisotropic field uses its calibrated
-iso 0.52, see ``filters.splat_anisotropic.ANISOTROPIC_ISO``). ``bench_surface.py --flatness``
+iso 0.51, see ``filters.splat_anisotropic.ANISOTROPIC_ISO``). ``bench_surface.py --flatness``
 calls :func:`run_flatness`; this file also runs alone.
 
 Cases:
@@ -32,11 +32,15 @@ Methods: ``isotropic`` (``filters.splat.splat_sparse`` + ``contour_sparse``), ``
 (the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100 iterations, pass band
 0.001), ``anisotropic`` (``filters.splat_anisotropic.splat_sparse_anisotropic`` defaults +
 ``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
+``isotropic+feature`` / ``anisotropic+feature`` (+ 25 sweeps of feature-weighted Laplacian
+smoothing, :func:`filters.mesh_smoothing.smooth_surface`, the ``MarchingCubes`` option),
 ``splashsurf_raw`` (``pysplashsurf.reconstruct_surface``, smoothing length 2 r, cube 0.5 r, iso
 0.6, float32) and ``splashsurf_smoothed`` (``pysplashsurf.reconstruction_pipeline`` with its
 weighted Laplacian mesh smoothing, 25 iterations, Löschner et al. 2023). Per pool also
 ``scene_pipeline``: the surface ``dam_break`` and ``drop`` write (``MetaballSplat`` intersected
-with the tank's inner box, ``MarchingCubes``, ``Smooth(30, 0.01)``), isotropic and anisotropic.
+with the tank's inner box, ``MarchingCubes(feature_smoothing=25)``, ``Smooth(30, 0.01)``),
+isotropic and anisotropic. ``ball_volume``: the volume error of every method on jittered lattice
+balls of radius 2, 3, 4 and 6 spacings (what smoothing costs drops).
 
 Flatness: the vertices of the top face at least 3 s inside the pool's rim; ``rms_plane`` is their
 RMS deviation from the true plane, ``rms_flat`` from their own mean (bumpiness), ``offset`` the
@@ -87,6 +91,15 @@ def lattice(shape, jitter, seed=0):
     return np.ascontiguousarray(g + rng.uniform(-jitter * S, jitter * S, g.shape))
 
 
+def ball(radius, jitter=0.05, seed=0):
+    """Lattice points within ``radius`` spacings of a point off the lattice, jittered."""
+    n = radius + 2
+    g = np.stack(np.meshgrid(*[np.arange(-n, n + 1)] * 3, indexing="ij"), -1).reshape(-1, 3) * S
+    g = g[np.linalg.norm(g - 0.1 * S, axis=1) < radius * S]
+    rng = np.random.default_rng(seed)
+    return np.ascontiguousarray(g + rng.uniform(-jitter * S, jitter * S, g.shape))
+
+
 # --------------------------------------------------------------------------------------------
 # Methods
 # --------------------------------------------------------------------------------------------
@@ -123,6 +136,20 @@ def anisotropic_smooth(x):
     return _smooth(*anisotropic(x))
 
 
+def _feature(x, points, tris):
+    from filters.mesh_smoothing import smooth_surface
+
+    return smooth_surface(points, tris, x, R), tris
+
+
+def isotropic_feature(x):
+    return _feature(x, *isotropic(x))
+
+
+def anisotropic_feature(x):
+    return _feature(x, *anisotropic(x))
+
+
 def splashsurf_raw(x):
     import pysplashsurf
 
@@ -147,6 +174,8 @@ METHODS = {
     "isotropic+smooth": isotropic_smooth,
     "anisotropic": anisotropic,
     "anisotropic+smooth": anisotropic_smooth,
+    "isotropic+feature": isotropic_feature,
+    "anisotropic+feature": anisotropic_feature,
     "splashsurf_raw": splashsurf_raw,
     "splashsurf_smoothed": splashsurf_smoothed,
 }
@@ -248,14 +277,15 @@ def sph_pool(seconds=1.5, shape=(20, 20, 8)):
 
 
 def scene_surface(x, tank_lo, tank_hi, anisotropic):
-    """The surface the liquid scenes build (``scenes/liquid_surface.py``): ``MetaballSplat``
-    intersected with the tank's inner box, ``MarchingCubes``, ``Smooth(30, 0.01)``."""
+    """The surface the liquid scenes build (``scenes/liquid_surface.py`` defaults):
+    ``MetaballSplat`` intersected with the tank's inner box, ``MarchingCubes`` with 25 sweeps of
+    feature-weighted smoothing, ``Smooth(30, 0.01)``."""
     import pyvista as pv
 
     from filters.implicit import Box
     from pipeline.surface import polydata_to_mesh, surface_stages
 
-    stages = surface_stages(radius=R, smooth_iterations=30, pass_band=0.01,
+    stages = surface_stages(radius=R, smooth_iterations=30, pass_band=0.01, feature_smoothing=25,
                             implicit=Box(tank_lo, tank_hi), operation="intersection",
                             anisotropic=anisotropic, normals=False)
     stages[0].SetInputDataObject(0, pv.PolyData(np.ascontiguousarray(x)))
@@ -310,7 +340,7 @@ def _verdict(out):
                    "ratio_to_best_splashsurf": methods[name]["rms_plane"] / best_splash,
                    "ratio_to_isotropic_same_smoothing": methods[name]["rms_plane"]
                    / methods["isotropic" + name[len("anisotropic"):]]["rms_plane"]}
-            for name in ("anisotropic", "anisotropic+smooth")}
+            for name in ("anisotropic", "anisotropic+smooth", "anisotropic+feature")}
     cost = out["cost"]["block_100k"]
     return {"flatness": flat,
             "cost_ratio_100k": cost["ratio"], "cost_meets_1.5": cost["ratio"] <= TARGET_COST}
@@ -343,6 +373,8 @@ def run_flatness(report=print, *, write: bool = True, include_sph: bool = True,
                           "kernel": "sph, support 4 r",
                           "anisotropy": dict(ANISO_DEFAULTS),
                           "smooth": "pipeline.surface.Smooth defaults (100, pass band 0.001)",
+                          "feature": "filters.mesh_smoothing.smooth_surface defaults (25 "
+                                     "sweeps, reach 8 r, low 0.5, high 1)",
                           "splashsurf": "smoothing length 2 r, cube 0.5 r, float32; smoothed: "
                                         "reconstruction_pipeline mesh_smoothing_iters=25, "
                                         "weights on",
@@ -388,13 +420,24 @@ def run_flatness(report=print, *, write: bool = True, include_sph: bool = True,
         report(f"  {name:20s} face_rms {res[name]['face_rms']:.4f}  edge_rms "
                f"{res[name]['edge_rms']:.4f}  volume {res[name]['volume_error']:+.4f}")
     out["sharpness"]["cube_16"] = {"particles": int(len(xc)), "methods": res}
+    # --- volume of lattice balls: what each method (and its smoothing) does to drops
+    out["ball_volume"] = {}
+    report("ball volumes (lattice balls, jitter 5 %): relative error")
+    for radius in (2, 3, 4, 6):
+        xb_ = ball(radius)
+        v0 = len(xb_) * S**3
+        res = {name: float(mesh_stats(*fn(xb_)).volume / v0 - 1) for name, fn in METHODS.items()}
+        out["ball_volume"][f"radius_{radius}"] = {"particles": int(len(xb_)), "methods": res}
+        report(f"  radius {radius} spacings: " + "  ".join(f"{k} {v:+.3f}" for k, v in res.items()))
     # --- cost: same particles, cell size and sparse grid, alternating
     xb = lattice((50, 50, 40), 0.1)
     fns = {"isotropic": isotropic, "anisotropic": anisotropic,
            "anisotropy_only": lambda y: anisotropic_kernels(y, R, return_volumes=True)}
     best, times = _best_alternating(fns, xb, repeats)
     best_s, times_s = _best_alternating({"isotropic+smooth": isotropic_smooth,
-                                         "anisotropic+smooth": anisotropic_smooth}, xb,
+                                         "anisotropic+smooth": anisotropic_smooth,
+                                         "isotropic+feature": isotropic_feature,
+                                         "anisotropic+feature": anisotropic_feature}, xb,
                                         max(1, repeats // 2))
     pool_best, _ = _best_alternating({"isotropic": isotropic, "anisotropic": anisotropic}, x,
                                      repeats)
@@ -407,6 +450,10 @@ def run_flatness(report=print, *, write: bool = True, include_sph: bool = True,
                        "anisotropic_smooth_s": best_s["anisotropic+smooth"],
                        "ratio_with_smooth": best_s["anisotropic+smooth"]
                        / best_s["isotropic+smooth"],
+                       "isotropic_feature_s": best_s["isotropic+feature"],
+                       "anisotropic_feature_s": best_s["anisotropic+feature"],
+                       "ratio_with_feature": best_s["anisotropic+feature"]
+                       / best_s["isotropic+feature"],
                        "times_s": dict(times, **times_s)},
         "pool_lattice": {"particles": int(len(x)), "isotropic_s": pool_best["isotropic"],
                          "anisotropic_s": pool_best["anisotropic"],
@@ -415,7 +462,9 @@ def run_flatness(report=print, *, write: bool = True, include_sph: bool = True,
     c = out["cost"]["block_100k"]
     report(f"cost 100k: isotropic {c['isotropic_s']:.3f} s, anisotropic "
            f"{c['anisotropic_s']:.3f} s (anisotropy {c['anisotropy_only_s']:.3f} s): ratio "
-           f"{c['ratio']:.2f}; with Smooth {c['ratio_with_smooth']:.2f}")
+           f"{c['ratio']:.2f}; with Smooth {c['ratio_with_smooth']:.2f}; feature smoothing "
+           f"{c['isotropic_feature_s'] - c['isotropic_s']:.3f} s vs windowed sinc "
+           f"{c['isotropic_smooth_s'] - c['isotropic_s']:.3f} s")
     out["machine"]["load_average_end"] = list(os.getloadavg())
     out["targets"] = _verdict(out)
     if write:
@@ -433,7 +482,7 @@ def render(meshes, pool, path):
     import pipeline.render  # noqa: F401 - chooses EGL / OSMesa without trying an X server
 
     pv.OFF_SCREEN = True
-    names = ("isotropic", "anisotropic", "anisotropic+smooth", "splashsurf_smoothed")
+    names = ("isotropic", "anisotropic", "anisotropic+feature", "splashsurf_smoothed")
     plotter = pv.Plotter(off_screen=True, shape=(1, len(names)), window_size=(2400, 700))
     for col, name in enumerate(names):
         pts, tris = meshes[name]
