@@ -10,10 +10,12 @@ of ``q^2`` (peak 1): ``sph`` (Monaghan's cubic spline), ``metaball`` (Wyvill et 
 ``blobby`` (Blinn 1982). This is Yu & Turk's (2013) anisotropic kernel ``W(r, G) = sigma det(G)
 P(|G r|)``: the ``det(G)`` and the normalisation ``sigma`` live in ``a_j``. For the ``sph``
 kernel :func:`splat_sparse_anisotropic` uses ``a_j = V_j (8 / pi) det(G_j)`` with the SPH
-volume ``V_j`` (m^3; voxel units inside), i.e. the SPH colour field ``sum_j V_j W_j(x)``, which
-is about 1 inside the liquid; for the other kernels ``a_j = det(G_j) h_j^3`` (1 for the
-volume-keeping matrices of :mod:`filters.anisotropy`, more where their long axis is capped),
-which keeps each particle's integral that of the isotropic kernel.
+volume ``V_j`` (m^3, voxel units inside; for ellipsoids under the ellipsoidal kernels
+themselves, :func:`filters.anisotropy.anisotropic_volumes`), i.e. the SPH colour field
+``sum_j V_j W_j(x)``, which is about 1 inside the liquid; for the other kernels
+``a_j = det(G_j) h_j^3`` (1 for the volume-keeping matrices of :mod:`filters.anisotropy`, more
+where their long axis is capped), which keeps each particle's integral that of the isotropic
+kernel.
 
 The output is the same as :func:`filters.splat.splat_sparse` / :func:`filters.splat.splat_dense`:
 an implicit value ``g = iso - f`` (negative inside) on a :class:`filters.sparse_grid.SparseGrid`
@@ -47,7 +49,7 @@ import numpy as np
 from numba import njit, prange
 
 from .anisotropy import DEFAULTS as ANISO_DEFAULTS
-from .anisotropy import _kernels, _radii
+from .anisotropy import _kernels, _radii, _volumes
 from .sparse_grid import (
     _EMPTY,
     DEFAULT_MAX_BYTES,
@@ -79,18 +81,17 @@ __all__ = [
 ANISOTROPIC_KERNELS = ("blobby", "metaball", "sph")
 _KID = {"blobby": 0, "metaball": 1, "sph": 2}
 
-#: Default iso values of the anisotropic fields. For ``sph`` 0.51, calibrated once (default
-#: kernel options) so that the flat top of an unjittered lattice pool lies on the true plane,
-#: half a spacing above the top layer: measured offset +0.001 spacings, -0.002 on a pool
-#: jittered by +-10 %; lattice-filled balls of radius 6 and 7 spacings then keep their volume
-#: within -0.1 % and -0.2 %, a 10^3 lattice cube within -0.2 % (measured). Why about 1/2: the
-#: field of a half-space of particle layers is a sum of one-dimensional layer profiles, which
-#: (midpoint rule, profiles wide against the spacing) reaches half its inside value half a
-#: spacing above the top layer. The isotropic kernel's 0.6 puts the surface 0.016 spacings below
-#: the plane; with the flattened top-layer kernels, whose profile across the layer is narrower,
-#: 0.6 would put it 0.06 spacings below. ``metaball`` and ``blobby`` keep the isotropic kernels'
-#: 0.5 (not calibrated).
-ANISOTROPIC_ISO = {"sph": 0.51, "metaball": 0.5, "blobby": 0.5}
+#: Default iso values of the anisotropic fields. For ``sph`` 0.367, calibrated once (default
+#: kernel options and volumes) so that the flat top of an unjittered lattice pool lies on the
+#: true plane, half a spacing above the top layer: measured offset +0.0000 spacings (0.01 in
+#: the iso moves it by about 0.01 spacings). Lattice balls of radius 4, 5, 6 and 7 spacings then
+#: keep their volume within -1.1 %, -0.1 %, -0.3 % and -0.3 %; small clusters come out larger
+#: (see :mod:`filters.anisotropy`). Lower than the isotropic kernel's 0.6 because the flattened
+#: top-layer kernels overlap within their layer, so their volumes
+#: (:func:`filters.anisotropy.anisotropic_volumes`: 0.82 s^3 on a flat surface, against 1.18 s^3
+#: from the isotropic density) are small and the field half a spacing above the top layer is
+#: weak. ``metaball`` and ``blobby`` keep the isotropic kernels' 0.5 (not calibrated).
+ANISOTROPIC_ISO = {"sph": 0.367, "metaball": 0.5, "blobby": 0.5}
 
 
 # --------------------------------------------------------------------------------------------
@@ -595,6 +596,15 @@ def _anisotropic_inputs(positions, radius, kernel, support, options):
     radii = _radii("radius", radius, positions.shape[0])
     centres, G, volumes, det = _kernels(positions, radii, support=support, **options)
     if kernel == "sph":
+        # the ellipsoids' volumes under the ellipsoids themselves (anisotropic_volumes); the
+        # spherical kernels inside the liquid keep their SPH volumes
+        hs = support * radii
+        aniso = ~np.all(G == np.eye(3) / hs[:, None, None], axis=(1, 2))
+        if aniso.any():
+            # no semi-axis is longer than max_axis * h (anisotropic_kernels)
+            consistent = _volumes(centres, G, det, (radii / radii.max()) ** 3, aniso,
+                                  options["max_axis"] * float(hs.max()))
+            volumes = np.where(aniso, consistent, volumes)
         amplitude = volumes * (8.0 / math.pi) * det
     else:
         amplitude = det * (support * radii) ** 3

@@ -309,8 +309,9 @@ class MetaballSplat(Algorithm):
         How ``implicit`` combines with the particles' field.
     anisotropic : bool
         Splat ellipsoidal kernels stretched along the local particle distribution (Yu & Turk
-        2013, :mod:`filters.anisotropy`): flatter sheets and sharper edges, 1.2-1.45x the
-        reconstruction time (``benchmarks/bench_anisotropy.py``). Kernels ``sph``,
+        2013, :mod:`filters.anisotropy`): flat water without bumps and sharper edges, about
+        1.35x the reconstruction time; drops of a few particles come out larger
+        (``benchmarks/bench_anisotropy.py``). Kernels ``sph``,
         ``metaball`` and ``blobby``.
     anisotropy : dict, optional
         Options of :func:`filters.anisotropy.anisotropic_kernels` (``stretch``,

@@ -318,3 +318,52 @@ def test_metaball_splat_stage_exposes_anisotropic_kernels():
     # a string is not a flag: bool("false") would have turned the kernels on
     with pytest.raises(TypeError, match="anisotropic must be True or False"):
         MetaballSplat(0.01, anisotropic="false")
+
+
+def test_anisotropic_volumes_of_a_lattice_and_a_lone_particle():
+    from filters.anisotropy import anisotropic_volumes
+
+    x, _ = _lattice((9, 9, 9))
+    G = np.repeat((np.eye(3) / H)[None], len(x), axis=0)
+    v = anisotropic_volumes(x, G)
+    inner = np.all(np.abs(x - 4 * S) < 1.5 * S, axis=1)
+    # spherical kernels inside a lattice: the SPH volume is the lattice cell, s^3
+    np.testing.assert_allclose(v[inner], S**3, rtol=0.02)
+    # a lone particle: V = 1 / (sigma det G P(0)) = (pi / 8) h^3
+    lone = anisotropic_volumes(np.zeros((1, 3)), G[:1])
+    assert lone[0] == pytest.approx(math.pi / 8 * H**3, rel=1e-6)
+    # a flattened ellipsoid is summed with its own shape: along its short axis a neighbour at
+    # 0.6 h is outside (0.6 h > 0.5 h), along its long axis inside
+    flat = np.diag([1 / H, 1 / H, 2 / H])[None]
+    pair_z = anisotropic_volumes(np.array([[0, 0, 0], [0, 0, 0.6 * H]]), np.repeat(flat, 2, 0))
+    pair_x = anisotropic_volumes(np.array([[0, 0, 0], [0.6 * H, 0, 0]]), np.repeat(flat, 2, 0))
+    assert pair_z[0] == pytest.approx(math.pi / 8 * H**3 / 2, rel=1e-6)
+    assert pair_x[0] < pair_z[0]
+    # only: the others are NaN; masses scale V
+    part = anisotropic_volumes(x, G, only=inner)
+    assert np.isnan(part[~inner]).all() and np.array_equal(part[inner], v[inner])
+    np.testing.assert_allclose(anisotropic_volumes(x, G, np.full(len(x), 2.0)), v, rtol=1e-6)
+    with pytest.raises(ValueError, match="G"):
+        anisotropic_volumes(x, G[:-1])
+    with pytest.raises(ValueError, match="positive definite"):
+        anisotropic_volumes(x[:1], -G[:1])
+    with pytest.raises(ValueError, match="masses"):
+        anisotropic_volumes(x, G, np.zeros(len(x)))
+    with pytest.raises(ValueError, match="only"):
+        anisotropic_volumes(x, G, only=np.ones(3, bool))
+
+
+def test_surface_centres_move_along_the_normal_only():
+    x, _ = _lattice((12, 12, 5), jitter=0.1, seed=4)
+    centres, G = anisotropic_kernels(x, R)
+    lengths, axes = kernel_axes(G)
+    # a distinct shortest axis (where two are clamped to the same length the axis is ambiguous)
+    aniso = lengths[:, 1] / lengths[:, 0] > 1.01
+    top = aniso & (x[:, 2] > 3.5 * S)
+    assert top.sum() > 50
+    shift = centres - x
+    normal = axes[:, :, 0]  # shortest axis
+    along = np.einsum("ij,ij->i", shift, normal)
+    lateral = shift - along[:, None] * normal
+    assert np.abs(lateral[top]).max() < 1e-6 * S
+    assert np.abs(along[top]).max() > 0.02 * S  # the jitter is smoothed out
