@@ -10,7 +10,7 @@ from pipeline.surface import surface_stages
 
 def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
                        smooth_iterations: int = 30, feature_smoothing: int = 25,
-                       anisotropic: bool = False) -> None:
+                       anisotropic: bool = True) -> None:
     """Add a ``surface`` output: SPH-field splatting of the particles, contoured and smoothed.
 
     The particle radius is half the spacing (kernel support of two spacings, as splashsurf uses)
@@ -29,21 +29,18 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
         Windowed-sinc iterations (0 to 10000).
     feature_smoothing : int
         Sweeps of feature-weighted Laplacian smoothing (Löschner et al. 2023,
-        :mod:`filters.mesh_smoothing`) before the windowed sinc (0 to 10000). With the default
-        25 the flat top of a pool is 1.5-1.7x flatter than with the windowed sinc alone (RMS
-        from the true plane, spacings: jittered lattice 0.023 against 0.039, SPH-settled
-        pools 0.026 / 0.020 against 0.043 / 0.031) and flatter than pysplashsurf's own
-        weighted smoothing (0.026 / 0.027 / 0.021). Drops keep their volume: lattice balls of
-        radius 2 / 3 / 4 / 6 spacings end -1.2 / +0.4 / -1.6 / -0.9 % from the particles'
-        volume (-1.2 / +0.7 / +0.5 / +1.1 % unsmoothed; pysplashsurf smoothed -11 / -5.0 / -3.8
-        / -0.8 %), one-particle sheets do not move (``bench_surface.py --flatness``).
+        :mod:`filters.mesh_smoothing`) before the windowed sinc (0 to 10000): flat water is
+        smoothed fully, drops of a few particles and one-particle sheets are not moved.
     anisotropic : bool
-        Splat anisotropic kernels (Yu & Turk 2013, :mod:`filters.anisotropy`) for 1.2-1.3x the
-        reconstruction time. Off by default: on a jittered lattice pool they make the top
-        flatter (0.016 against 0.023 spacings through this function), but on pools settled by
-        ``SPHLiquid`` the surface follows the particles' own unevenness (0.031 / 0.026 against
-        0.026 / 0.020 with the isotropic kernel), and pysplashsurf's smoothed surface is
-        flatter there (0.027 / 0.021).
+        Splat anisotropic kernels (Yu & Turk 2013, :mod:`filters.anisotropy`), 1.35x the
+        reconstruction time of isotropic ones. On by default: through this function the flat
+        top of a pool lies 0.011 / 0.020 / 0.021 spacings RMS from the true plane (jittered
+        lattice / pools settled by ``SPHLiquid``, 20x20x8 and 40x40x10 particles), against
+        0.023 / 0.026 / 0.020 with isotropic kernels and 0.026 / 0.027 / 0.021 for pysplashsurf's
+        smoothed surface (without ``feature_smoothing`` 0.039 / 0.043 / 0.031 with isotropic
+        kernels). Lattice balls of radius 4 and 6 spacings end within -1 % and -2.2 % of the
+        particles' volume; drops of radius 2-3 spacings come out 15-21 % larger (isotropic:
+        within 1.2 %, pysplashsurf smoothed 5-11 % smaller; ``bench_surface.py --flatness``).
     """
     smooth_iterations = check_int("smooth_iterations", smooth_iterations, 0, 10000)
     feature_smoothing = check_int("feature_smoothing", feature_smoothing, 0, 10000)
