@@ -26,8 +26,9 @@ radius 2 / 3 / 4 / 6 spacings change their volume by 0.0 / -0.3 / -2.1 / -2.0 %,
 splashsurf's weighted smoothing (25 iterations) loses 10 / 5.7 / 4.3 / 1.9 %; a single layer
 does not move. Flat pools: RMS deviation from the true plane 0.042 -> 0.023 spacings (jittered
 lattice), 0.049 -> 0.026 and 0.033 -> 0.020 (SPH-settled pools), against 0.026 / 0.027 / 0.021
-for splashsurf's. Cost: 0.15 s for the 251k vertices of a 100k-particle block on 2 cores (the
-fullness sums dominate), against 1.1 s for VTK's windowed sinc with 100 iterations.
+for splashsurf's. Cost: 0.34 s for the 251k vertices of a 100k-particle block on 2 cores
+(fullness sums and edge lists about 0.15 s each, the sweeps 0.05 s), against 1.3 s for VTK's
+windowed sinc with 100 iterations (``benchmarks/bench_anisotropy.py``).
 """
 
 from __future__ import annotations
