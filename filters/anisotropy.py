@@ -772,11 +772,14 @@ def anisotropic_kernels(positions, radius, *, support: float = 4.0,
         |D|_F) D`` (``m = tr C / 3``), so particles with ``|D|_F <= tau m`` get exactly the
         isotropic kernel (and the plain smoothed centre) without an eigen-decomposition. Inside
         a jittered lattice (+-10 %) ``|D|_F / m`` stays below 0.11, one spacing below a flat
-        surface it is 0.15-0.30, at the surface 0.56-0.71 (measured); the default 0.12 makes
-        the interior isotropic. 0 gives Yu & Turk's kernels everywhere.
+        surface it is 0.15-0.30, at the surface 0.56-0.71 (measured with a neighbourhood of 3
+        spacings; wider ones average more neighbours, so the interior stays below); the default
+        0.12 makes the interior isotropic (tested). 0 gives Yu & Turk's kernels everywhere.
     return_volumes : bool
-        Also return the SPH particle volumes ``V_i = m_i / rho_i`` (m^3, unsmoothed positions,
-        cubic spline of support ``(h_i + h_j) / 2``, ``m ~ r^3``), which the ``sph`` splat needs.
+        Also return the SPH particle volumes ``V_i = m_i / rho_i`` of the isotropic kernels
+        (m^3, unsmoothed positions, cubic spline of support ``(h_i + h_j) / 2``, ``m ~ r^3``);
+        the ``sph`` splat uses them for the spherical kernels and :func:`anisotropic_volumes`
+        for the ellipsoids.
     backend : {"auto", "grid", "hash", "kdtree"}
         Neighbour search. ``grid``: a uniform grid of cells half as wide as the neighbourhood
         (its own serial counting sort); each cell gathers its neighbours once and the sums run in
