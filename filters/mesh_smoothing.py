@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .anisotropy import _cell_sort
+from .anisotropy import _cell_sort, _fitting_cells
 from .validation import check_int, check_points, check_range
 
 __all__ = ["vertex_neighbors", "feature_weights", "weighted_laplacian", "smooth_surface"]
@@ -132,12 +132,7 @@ def _fullness(v, sx, start, origin, cell, dims, R):
 def _raw_fullness(vertices, positions, R):
     if positions.shape[0] == 0:
         return np.zeros(vertices.shape[0])
-    cell = R * (1.0 + 1e-9)
-    lo = positions.min(axis=0)
-    dims = (np.floor((positions.max(axis=0) - lo) / cell) + 1.0).astype(np.int64)
-    if float(np.prod(dims)) > 4_000_000:
-        cell *= (float(np.prod(dims)) / 4_000_000) ** (1.0 / 3.0)
-        dims = (np.floor((positions.max(axis=0) - lo) / cell) + 1.0).astype(np.int64)
+    lo, cell, dims = _fitting_cells(positions, R)
     _, start, sx = _cell_sort(positions, lo, 1.0 / cell, dims)
     return _fullness(vertices, sx, start, lo, cell, dims, R)
 
