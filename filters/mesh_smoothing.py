@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from .anisotropy import _cell_sort, _fitting_cells
+from .topology import check_triangles
 from .validation import check_int, check_points, check_range
 
 __all__ = ["vertex_neighbors", "feature_weights", "weighted_laplacian", "smooth_surface"]
@@ -61,10 +62,10 @@ def vertex_neighbors(triangles, n_vertices: int):
         ``neighbors[offsets[v]:offsets[v + 1]]`` are the vertices sharing an edge with ``v``,
         ascending, each once.
     """
-    t = np.ascontiguousarray(triangles, dtype=np.int64).reshape(-1, 3)
-    if t.size and (t.min() < 0 or t.max() >= n_vertices):
-        raise ValueError(f"triangles must index vertices 0 .. {n_vertices - 1}")
-    return _csr_neighbors(t, int(n_vertices))
+    n_vertices = check_int("n_vertices", n_vertices, 0)
+    t = check_triangles("triangles", triangles, n_vertices, allow_empty=True,
+                        allow_degenerate=True)
+    return _csr_neighbors(np.ascontiguousarray(t), n_vertices)
 
 
 @njit(cache=True)

@@ -273,18 +273,24 @@ def cloth_grid(nx, ny, *, size=(1.0, 1.0), origin=(0.0, 0.0, 0.0), plane="xy",
                           offsets, indices)
 
 
-def check_triangles(name, triangles, n_points):
-    """Return ``triangles`` as a (T, 3) int64 array indexing ``n_points`` points, or raise."""
+def check_triangles(name, triangles, n_points, *, allow_empty=False, allow_degenerate=False):
+    """Return ``triangles`` as a (T, 3) int64 array indexing ``n_points`` points, or raise.
+
+    ``allow_empty`` accepts T = 0 (an empty surface); ``allow_degenerate`` accepts triangles
+    with a repeated vertex (marching cubes can produce them)."""
     tris = np.asarray(triangles)
-    if tris.ndim != 2 or tris.shape[1] != 3 or tris.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty (T, 3) array of vertex indices, "
-                         f"got shape {tris.shape}")
+    if tris.ndim != 2 or tris.shape[1] != 3 or (tris.shape[0] == 0 and not allow_empty):
+        raise ValueError(f"{name} must be a {'' if allow_empty else 'non-empty '}(T, 3) array of "
+                         f"vertex indices, got shape {tris.shape}")
+    if tris.size == 0:
+        return np.zeros((0, 3), np.int64)
     if not np.issubdtype(tris.dtype, np.integer):
         raise TypeError(f"{name} must hold integers, got {tris.dtype}")
     tris = tris.astype(np.int64)
     if tris.min() < 0 or tris.max() >= n_points:
         raise ValueError(f"{name} must index vertices in [0, {n_points - 1}]")
-    if np.any((tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 0] == tris[:, 2])):
+    if not allow_degenerate and np.any((tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2])
+                                       | (tris[:, 0] == tris[:, 2])):
         raise ValueError(f"{name} contains degenerate triangles (a repeated vertex)")
     return tris
 

@@ -44,6 +44,10 @@ def test_vertex_neighbors_of_a_tetrahedron():
         assert nbrs[offsets[v]:offsets[v + 1]].tolist() == [u for u in range(4) if u != v]
     with pytest.raises(ValueError, match="triangles"):
         vertex_neighbors(tris, 3)
+    with pytest.raises(ValueError, match="triangles"):
+        vertex_neighbors(tris.reshape(3, 4), 4)  # not (T, 3): refused, not reshaped
+    with pytest.raises(TypeError, match="triangles"):
+        vertex_neighbors(tris.astype(float), 4)
 
 
 def test_flat_pool_gets_flatter_and_stays_at_its_height():
