@@ -32,6 +32,8 @@ __all__ = [
     "SimulationUnstableError",
     "frame_times",
     "TIME_DECIMALS",
+    "MAX_FRAMES",
+    "MAX_FPS",
 ]
 
 #: Published and written times are rounded to this many decimals, so that ``3 / 10`` is written
@@ -226,33 +228,45 @@ class Frame:
     cell_types: np.ndarray | None = None
 
 
+#: Most frames one run may have (a million frames is over nine hours at 30 fps).
+MAX_FRAMES = 1_000_000
+#: Highest frame rate: frame times are rounded to :data:`TIME_DECIMALS` decimals and must differ.
+MAX_FPS = 1e6
+
+
 def frame_times(fps: float, duration: float | None = None, frames: int | None = None) -> np.ndarray:
     """Times of the frames of a run, rounded to :data:`TIME_DECIMALS` decimals.
 
     Parameters
     ----------
     fps : float
-        Frames per second, > 0.
+        Frames per second, in (0, :data:`MAX_FPS`].
     duration : float, optional
-        Length of the run (s), >= 0.  The frames are ``0, 1/fps, ...`` up to ``duration``.
+        Length of the run (s), >= 0.  The frames are ``0, 1/fps, ...`` up to ``duration``, at
+        most :data:`MAX_FRAMES` of them.
     frames : int, optional
-        Number of frames instead of ``duration`` (>= 1).  Give exactly one of the two.
+        Number of frames instead of ``duration``, in [1, :data:`MAX_FRAMES`].  Give exactly one
+        of the two.
 
     Returns
     -------
     (F,) float64 array
         ``round(i / fps, 9)`` for ``i = 0 .. F-1``.
     """
-    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps must be a positive number, got {fps!r}")
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise ValueError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps!r}")
     if (duration is None) == (frames is None):
         raise ValueError("give exactly one of duration (s) and frames (count)")
     if frames is None:
         if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration >= 0):
             raise ValueError(f"duration must be a number >= 0 (s), got {duration!r}")
-        frames = int(math.floor(duration * fps + 1e-9)) + 1
-    elif not (isinstance(frames, (int, np.integer)) and frames >= 1):
-        raise ValueError(f"frames must be an integer >= 1, got {frames!r}")
+        count = math.floor(duration * fps + 1e-9) + 1
+        if count > MAX_FRAMES:
+            raise ValueError(f"duration {duration:g} s at {fps:g} fps gives {count:.4g} frames, "
+                             f"more than the {MAX_FRAMES:,} a run may have")
+        frames = int(count)
+    elif not (isinstance(frames, (int, np.integer)) and 1 <= frames <= MAX_FRAMES):
+        raise ValueError(f"frames must be an integer in [1, {MAX_FRAMES:,}], got {frames!r}")
     return np.array([round(i / fps, TIME_DECIMALS) for i in range(int(frames))], dtype=np.float64)
 
 

@@ -148,12 +148,26 @@ def _parse_options(items) -> dict:
 # -- surface ------------------------------------------------------------------------------------
 def _cmd_surface(args) -> int:
     from .frames import FramesError, surface_series
-    from .series import SeriesError, read_collection
+    from .series import SeriesError, validate_series
 
+    if not args.name.isidentifier():
+        raise UsageError(f"--name must be a plain name such as 'surface' (letters, digits, _), "
+                         f"got {args.name!r}")
+    source = Path(args.particles)
+    out = Path(args.out)
+    target = out / f"{args.name}.pvd"
+    if (target.resolve() == source.resolve()
+            or (out / args.name).resolve() == (source.parent / source.name.split(".")[0]).resolve()):
+        raise UsageError(f"--out {out} with --name {args.name} would overwrite the input series "
+                         f"{source}; choose another --out or --name")
     try:
-        read_collection(args.particles)
+        entries = validate_series(source)  # every frame, before anything is written
     except (FileNotFoundError, SeriesError) as exc:
         raise UsageError(str(exc)) from None
+    inputs = {(source.parent / name).resolve() for _, name in entries}
+    if any(p.parent == (out / args.name).resolve() for p in inputs):
+        raise UsageError(f"--out {out} with --name {args.name} would overwrite the input frames; "
+                         f"choose another --out or --name")
     options = dict(radius=args.radius, cell_size=args.cell_size, kernel=args.kernel,
                    smooth_iterations=args.smooth_iterations, **_parse_options(args.options))
     try:
@@ -162,11 +176,11 @@ def _cmd_surface(args) -> int:
         surface_stages(**options)
     except (TypeError, ValueError) as exc:
         raise UsageError(str(exc)) from None
-    out = Path(args.out)
+    _fit_budget_to_memory(args, options)
     _check_writable(out)
     client = _client(args)
     try:
-        result = surface_series(args.particles, out / f"{args.name}.pvd", client=client,
+        result = surface_series(args.particles, target, client=client,
                                 resume=args.resume, progress=not args.quiet, **options)
     except FramesError as exc:
         print(f"blobflow: {exc}", file=sys.stderr)
@@ -178,6 +192,31 @@ def _cmd_surface(args) -> int:
     print(f"wrote {result.path} ({result.computed} frames computed, {result.skipped} kept)")
     _report_memory(result)
     return 0
+
+
+def _fit_budget_to_memory(args, options: dict) -> None:
+    """Tie the per-frame grid budget to this machine before any frame starts.
+
+    Each local worker may hold one frame's grid, up to ``max_bytes``.  Left at its default, the
+    budget is lowered so that all workers together fit :func:`filters.memory.memory_limit`;
+    given explicitly, a budget the machine cannot hold is refused.  A remote ``--scheduler``'s
+    workers have their own memory and keep the budget as given.
+    """
+    from filters.memory import MemoryLimitError, check_memory, format_bytes, memory_limit
+    from filters.sparse_grid import DEFAULT_MAX_BYTES
+
+    if args.scheduler is not None:
+        return
+    concurrent = args.workers or 1
+    if "max_bytes" not in options:
+        options["max_bytes"] = int(max(1, min(DEFAULT_MAX_BYTES, memory_limit() // concurrent)))
+        return
+    try:
+        check_memory(f"{concurrent} frame(s) at once, max_bytes = "
+                     f"{format_bytes(options['max_bytes'])} each",
+                     concurrent * options["max_bytes"], hint="lower max_bytes or --workers")
+    except MemoryLimitError as exc:
+        raise UsageError(str(exc)) from None
 
 
 # -- list ---------------------------------------------------------------------------------------
@@ -204,30 +243,88 @@ def _cmd_list(args) -> int:
 
 # -- run ----------------------------------------------------------------------------------------
 def _check_writable(directory: Path) -> None:
-    """Fail early, with one line, if ``directory`` cannot be created or written."""
+    """Fail early, with one line, if ``directory`` cannot be created or written.
+
+    Tries for real (``os.access`` says yes to root under ``/sys`` and ``/proc``): creates the
+    missing folders and a temporary file, then removes what it created.
+    """
     probe = directory
     while not probe.exists():
         probe = probe.parent
     if not probe.is_dir():
         raise UsageError(f"cannot create output folder {directory}: {probe} is not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise UsageError(f"output folder {directory} is not writable")
-    if directory.exists():
-        try:
-            with tempfile.TemporaryFile(dir=directory):
+    created = []
+    try:
+        missing = [directory, *directory.parents][: len(directory.parts) - len(probe.parts)]
+        for folder in reversed(missing):
+            folder.mkdir()
+            created.append(folder)
+        with tempfile.TemporaryFile(dir=directory):
+            pass
+    except OSError as exc:
+        raise UsageError(f"output folder {directory} cannot be written: "
+                         f"{exc.strerror or exc}") from None
+    finally:
+        for folder in reversed(created):
+            try:
+                folder.rmdir()
+            except OSError:
                 pass
-        except OSError as exc:
-            raise UsageError(f"output folder {directory} is not writable: {exc.strerror}") from None
 
 
-def _scene_record(scene, parameters, fps) -> dict:
-    return {"scene": scene.name, "fps": fps, "parameters": parameters}
+def _scene_record(scene, parameters, fps, outputs) -> dict:
+    return {"scene": scene.name, "fps": fps, "parameters": parameters, "outputs": outputs}
+
+
+#: What ``blobflow run`` writes beside the series (renders), removed with a previous run.
+_RUN_FILES = ("turntable.gif", "movie.mp4")
+
+
+def _read_record(out: Path) -> dict | None:
+    """The ``scene.json`` of a previous run in ``out``, or None; one-line error if unreadable."""
+    path = out / "scene.json"
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(record, dict):
+            raise ValueError("not a JSON object")
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"{path} is not a blobflow run record ({exc}); choose another --out "
+                         f"or remove it") from None
+    return record
+
+
+def _remove_previous_run(out: Path, record: dict) -> None:
+    """Delete the series and renders a previous run of the same scene left in ``out``.
+
+    Only the names blobflow writes are touched: ``NAME.pvd``, ``NAME.*.series``, ``NAME.xdmf``,
+    ``NAME.h5`` and the frames folder ``NAME/`` of each output the record lists, and the renders.
+    """
+    import shutil
+
+    names = [n for n in record.get("outputs", []) if isinstance(n, str) and n.isidentifier()]
+    for name in names:
+        for path in (out / f"{name}.pvd", out / f"{name}.xdmf", out / f"{name}.h5",
+                     *out.glob(f"{name}.*.series")):
+            path.unlink(missing_ok=True)
+        if (out / name).is_dir():
+            shutil.rmtree(out / name)
+    for file_name in _RUN_FILES:
+        (out / file_name).unlink(missing_ok=True)
+
+
+def _write_text_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
 
 
 def _cmd_run(args) -> int:
     from filters.simulation import SimulationError
 
     from .scene import load_scene
+    from .series import SeriesError
 
     try:
         scene = load_scene(args.scene)
@@ -250,11 +347,12 @@ def _cmd_run(args) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     parameters = {**scene.defaults(), **overrides}
-    record_path = out / "scene.json"
-    if args.resume and record_path.is_file():
-        saved = json.loads(record_path.read_text())
-        if saved.get("scene") != scene.name:
-            raise UsageError(f"{out} holds a run of scene {saved.get('scene')!r}, not {scene.name!r}")
+    _check_writable(out)
+    saved = _read_record(out)
+    if saved is not None and saved.get("scene") != scene.name:
+        raise UsageError(f"{out} holds a run of scene {saved.get('scene')!r}, not {scene.name!r}; "
+                         f"choose another --out or remove it")
+    if args.resume and saved is not None:
         saved_params = {k: (tuple(v) if isinstance(v, list) else v)
                         for k, v in saved.get("parameters", {}).items()}
         clashes = [k for k, v in overrides.items() if k in saved_params and saved_params[k] != v]
@@ -267,18 +365,27 @@ def _cmd_run(args) -> int:
             fps = saved.get("fps", fps)
         elif saved.get("fps") not in (None, fps):
             raise UsageError(f"--resume needs the same --fps as the run in {out} ({saved['fps']})")
-    _check_writable(out)
     try:
         flow = scene.build(**parameters)
         flow.source.set_frames(fps, duration=duration, frames=args.frames)
     except (ValueError, TypeError) as exc:
         raise UsageError(f"scene {scene.name!r}: {exc}") from None
+    if args.resume:
+        try:
+            flow.check_resume(out)
+        except (SeriesError, ValueError) as exc:
+            raise UsageError(f"cannot resume: {exc}") from None
 
     out.mkdir(parents=True, exist_ok=True)
-    record = _scene_record(scene, parameters, fps)
-    (out / "scene.json").write_text(json.dumps(record, indent=1, default=list) + "\n")
+    if saved is not None and not args.resume:
+        _remove_previous_run(out, saved)
+    record = _scene_record(scene, parameters, fps, flow.written_outputs())
+    _write_text_atomic(out / "scene.json", json.dumps(record, indent=1, default=list) + "\n")
     try:
         paths = flow.run(out, resume=args.resume, progress=not args.quiet)
+    except SeriesError as exc:  # a checkpoint frame on disk that cannot be read
+        print(f"blobflow: error: {exc}", file=sys.stderr)
+        return 1
     except SimulationError as exc:
         print(f"blobflow: {exc}", file=sys.stderr)
         print(f"blobflow: the frames written before the failure are valid in {out}", file=sys.stderr)
@@ -300,12 +407,12 @@ def _cmd_run(args) -> int:
 # -- render -------------------------------------------------------------------------------------
 def _cmd_render(args) -> int:
     from .render import RenderUnavailableError, parse_size, timelapse, turntable
-    from .series import SeriesError, read_collection
+    from .series import SeriesError, validate_series
 
     paths = [Path(p) for p in args.series]
     try:
         for path in paths:
-            read_collection(path)
+            validate_series(path)  # every frame, before anything is drawn or written
         size = parse_size(args.size)
     except (FileNotFoundError, SeriesError, ValueError) as exc:
         raise UsageError(str(exc)) from None

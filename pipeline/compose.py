@@ -8,7 +8,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
-from .algorithm import raise_pending
+from .algorithm import raise_pending, vtk_messages
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, export_xdmf, read_frame
 from .sources import SimulationSource
@@ -113,15 +113,53 @@ class Flow:
             raise ValueError(f"name must be one of {sorted(self.stages)}, got {name!r}")
         stage = self.stages[name]
         algorithm = stage.algorithm
-        ok = algorithm.UpdateTimeStep(float(time))
+        with vtk_messages() as log:  # our own exception says it better than VTK's echo of it
+            ok = algorithm.UpdateTimeStep(float(time))
         raise_pending(stage.chain)
         if not ok:  # a VTK filter of the chain failed without a Python exception
+            detail = log.errors[0] if log.errors else "no message"
             raise RuntimeError(f"output {name!r}: the VTK pipeline failed at t = {time} "
-                               f"({algorithm.GetClassName()}); see the VTK error above")
+                               f"({algorithm.GetClassName()}): {detail}")
         data = algorithm.GetOutputDataObject(0)
         copy = data.NewInstance()
         copy.ShallowCopy(data)
         return copy
+
+    def written_outputs(self) -> list[str]:
+        """Names of the outputs that :meth:`run` writes as series."""
+        return [s.name for s in self.stages.values() if s.write]
+
+    def check_resume(self, directory) -> int:
+        """Check, without changing anything, that the series in ``directory`` can be resumed.
+
+        Every written output's collection must list only frames this flow writes (its own
+        folder and names), at this flow's frame times.
+
+        Returns
+        -------
+        int
+            The number of frames complete in every series (before looking for a checkpoint).
+
+        Raises
+        ------
+        SeriesError
+            If a collection is malformed or lists files a resume must not touch.
+        ValueError
+            If its frame times differ from this flow's (another fps) or it has more frames.
+        """
+        directory = Path(directory)
+        times = [float(t) for t in self.times]
+        done = None
+        for name in self.written_outputs():
+            writer = SeriesWriter(directory / f"{name}.pvd", resume=True)
+            for index, (t, _) in enumerate(writer.entries):
+                if index >= len(times) or t != times[index]:
+                    raise ValueError(
+                        f"{writer.path} was written with other frame times ({t} s at frame "
+                        f"{index}); run without resume, or with the same fps and at least as "
+                        f"long a duration")
+            done = len(writer) if done is None else min(done, len(writer))
+        return done or 0
 
     def _resume_point(self, writers: dict[str, SeriesWriter]) -> int:
         """Frames already complete in every series, after restoring the source to the last one."""

@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import resource
 import socket
+import struct
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -107,6 +108,56 @@ def _run_task(task, in_file: str, out_file: str, time: float, options: dict) -> 
     return {"worker": f"{socket.gethostname()}:{os.getpid()}", "peak_rss": _peak_rss()}
 
 
+#: Largest first message (bytes) a Dask scheduler's handshake is taken to have.
+_HANDSHAKE_LIMIT = 2**20
+
+
+def _probe_scheduler(address: str, timeout: float = 5.0) -> None:
+    """Check that a ``tcp://`` address answers like a Dask scheduler, before Dask connects.
+
+    A Dask server writes a small handshake (an 8-byte little-endian length, then that many
+    bytes) as soon as it accepts a connection.  Dask's own client trusts that length, so a
+    server that sends nothing (an HTTP server) keeps it waiting, and one that sends other bytes
+    makes it allocate whatever they encode; this probe refuses both with one clear message.
+    """
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp"):
+        return  # tls://, ucx://, inproc://: left to Dask
+    host, _, port_text = rest.rpartition(":")
+    host = host.strip("[]")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}") from None
+    if not host or not 0 < port < 65536:
+        raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}")
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except OSError as exc:
+        raise SchedulerError(f"cannot reach the Dask scheduler at {address}: "
+                             f"{exc.strerror or exc}") from None
+    header = b""
+    with sock:
+        sock.settimeout(timeout)
+        try:
+            while len(header) < 8:
+                chunk = sock.recv(8 - len(header))
+                if not chunk:
+                    break
+                header += chunk
+        except OSError:  # socket.timeout included
+            raise SchedulerError(
+                f"{address} accepted the connection but sent no Dask handshake within "
+                f"{timeout:g} s: not a Dask scheduler") from None
+    if len(header) < 8:
+        raise SchedulerError(f"{address} closed the connection without a Dask handshake: "
+                             f"not a Dask scheduler")
+    (size,) = struct.unpack("<Q", header)
+    if not 0 < size <= _HANDSHAKE_LIMIT:
+        raise SchedulerError(f"{address} does not speak Dask's protocol (its first message "
+                             f"claims {size} bytes): not a Dask scheduler")
+
+
 def connect(scheduler: str | None = None, workers: int | None = None):
     """A Dask client: to ``scheduler`` (``tcp://host:port``), or to a new ``LocalCluster``.
 
@@ -133,6 +184,7 @@ def connect(scheduler: str | None = None, workers: int | None = None):
     except ImportError:
         raise SchedulerError("Dask is not installed: pip install 'blobflow[dask]'") from None
     if scheduler is not None:
+        _probe_scheduler(scheduler)
         try:
             return Client(scheduler, timeout="10s")
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
@@ -267,6 +319,7 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
 # -- surface reconstruction of a particle series --------------------------------------------------
 def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> None:
     """Task: read one particle frame, reconstruct its surface, write it (``.vtp``)."""
+    from .algorithm import raise_pending, vtk_messages
     from .convert import set_time
     from .surface import surface_stages
 
@@ -275,11 +328,12 @@ def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> No
     stages[0].SetInputDataObject(0, particles)
     for upstream, downstream in zip(stages, stages[1:]):
         downstream.SetInputConnection(0, upstream.GetOutputPort(0))
-    stages[-1].Update()
-    for stage in stages:
-        error = getattr(stage, "pending_error", None)
-        if error is not None:
-            raise error
+    with vtk_messages() as log:  # a failure is reported once, by the task's error
+        ok = stages[-1].Update()
+    raise_pending(stages)
+    if not ok:
+        raise RuntimeError(f"surface of {in_file} failed: "
+                           f"{log.errors[0] if log.errors else 'VTK reported no message'}")
     surface = stages[-1].GetOutputDataObject(0)
     copy = surface.NewInstance()
     copy.ShallowCopy(surface)

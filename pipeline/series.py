@@ -14,8 +14,10 @@ series.  XML files are written appended, raw (not base64), zlib-compressed, with
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
+import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -31,12 +33,15 @@ from vtkmodules.vtkIOXML import (
     vtkXMLUnstructuredGridWriter,
 )
 
+from .algorithm import vtk_messages
+
 __all__ = [
     "SeriesWriter",
     "SeriesError",
     "read_series",
     "read_collection",
     "read_frame",
+    "validate_series",
     "export_xdmf",
     "check_finite_dataset",
     "write_frame",
@@ -153,7 +158,7 @@ class SeriesWriter:
         self._class: str | None = None
         self._fresh = not resume
         if resume and self.path.exists():
-            self.entries = read_collection(self.path)
+            self.entries = self._own_entries(read_collection(self.path))
             if self.entries:
                 ext = Path(self.entries[0][1]).suffix
                 self._class = next(c for c, (e, _) in _WRITERS.items() if e == ext)
@@ -166,10 +171,38 @@ class SeriesWriter:
         """Times of the frames written so far."""
         return [t for t, _ in self.entries]
 
+    def _own_entries(self, entries: list[tuple[float, str]]) -> list[tuple[float, str]]:
+        """Check that a collection on disk lists exactly the frames this writer would write.
+
+        Resuming deletes the frames after the resume point, so it must only ever act on files
+        named ``NAME/NAME_%06d.EXT`` inside the series' own folder, numbered from 0: a collection
+        edited to list ``../x`` or an absolute path is refused.
+        """
+        if not entries:
+            return []
+        ext = Path(entries[0][1]).suffix
+        if ext not in _READERS:
+            raise SeriesError(f"{self.path} lists {entries[0][1]!r}; a series frame ends in "
+                              f"one of {sorted(_READERS)}")
+        for index, (_, name) in enumerate(entries):  # times: checked by read_collection
+            expected = f"{self.name}/{self.name}_{index:06d}{ext}"
+            if name != expected:
+                raise SeriesError(
+                    f"{self.path} lists frame {index} as {name!r}, not {expected!r}: it was not "
+                    f"written by blobflow, so it cannot be resumed (run without resume)")
+        return list(entries)
+
     def truncate(self, n_frames: int) -> None:
-        """Keep only the first ``n_frames`` frames (used when resuming several series at once)."""
+        """Keep only the first ``n_frames`` frames (used when resuming several series at once).
+
+        Only files inside the series' own frame folder are ever deleted.
+        """
+        folder = self.frames_dir.resolve()
         for _, name in self.entries[n_frames:]:
-            (self.path.parent / name).unlink(missing_ok=True)
+            target = (self.path.parent / name).resolve()
+            if target.parent != folder:  # never delete outside NAME/ (checked on load too)
+                raise SeriesError(f"refusing to delete {target}: outside {folder}")
+            target.unlink(missing_ok=True)
         self.entries = self.entries[:n_frames]
         self._write_collections()
 
@@ -282,6 +315,22 @@ def read_collection(path) -> list[tuple[float, str]]:
         raise SeriesError(f"{path} is not a valid series file: {exc}") from None
     if any(name is None for _, name in entries):
         raise SeriesError(f"{path} lists a DataSet without a file")
+    previous = -math.inf
+    for index, (time, _) in enumerate(entries):
+        if not (math.isfinite(time) and time > previous):
+            raise SeriesError(f"{path} lists frame {index} at t = {time!r}: frame times must be "
+                              f"finite and increasing")
+        previous = time
+    return entries
+
+
+def validate_series(path) -> list[tuple[float, str]]:
+    """Read a collection and every frame it lists; raise :class:`SeriesError` naming the first
+    missing, truncated or corrupt one.  Returns the entries of :func:`read_collection`."""
+    path = Path(path)
+    entries = read_collection(path)
+    for _, name in entries:
+        read_frame(path.parent / name)
     return entries
 
 
@@ -293,12 +342,98 @@ def read_frame(path) -> vtkDataObject:
         raise SeriesError(f"cannot read {path.name}: supported {sorted(_READERS)}")
     if not path.is_file():
         raise SeriesError(f"series frame {path} is missing")
+    _check_appended_headers(path)
     reader = reader_class()
-    if not reader.CanReadFile(str(path)):
+    with vtk_messages() as log:
+        readable = reader.CanReadFile(str(path))
+        if readable:
+            reader.SetFileName(str(path))
+            reader.Update()
+    if not readable:
         raise SeriesError(f"series frame {path} is not a readable VTK XML file")
-    reader.SetFileName(str(path))
-    reader.Update()
-    return reader.GetOutputDataObject(0)
+    if log.errors:
+        raise SeriesError(f"series frame {path} is corrupt or truncated: {log.errors[0]}")
+    data = reader.GetOutputDataObject(0)
+    _check_frame_complete(reader, data, path)
+    return data
+
+
+#: zlib cannot expand data more than about 1032 times: a block header that claims more is damaged.
+_MAX_EXPANSION = 1100
+_HEAD_LIMIT = 1 << 24  # the XML part of a frame is small; appended data starts after it
+
+
+def _check_appended_headers(path: Path) -> None:
+    """Check the binary block headers of raw appended data before VTK trusts them.
+
+    VTK's XML readers allocate what a block header claims; one damaged bit there makes them
+    request exabytes and abort the whole process (``std::bad_alloc``), which no exception can
+    catch.  Each array's header must fit in the file, and compressed blocks may not claim more
+    than zlib can expand.  Files without raw appended data are left to VTK.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(min(size, _HEAD_LIMIT))
+        marker = re.search(rb'<AppendedData[^>]*encoding="raw"[^>]*>\s*_', head)
+        if marker is None:
+            return
+        xml = head[: marker.start()]
+        base = marker.end()
+        word = 4 if re.search(rb'header_type="UInt32"', xml) else 8
+        if not re.search(rb'<VTKFile[^>]*header_type=', xml):
+            word = 4  # the XML format's default header type
+        fmt = "<" if re.search(rb'byte_order="LittleEndian"', xml) else ">"
+        fmt += "I" if word == 4 else "Q"
+        compressed = re.search(rb'<VTKFile[^>]*compressor="', xml) is not None
+        offsets = [int(m.group(1)) for m in
+                   re.finditer(rb'<DataArray[^>]*format="appended"[^>]*offset="\s*(\d+)', xml)]
+        for offset in offsets:
+            start = base + offset
+            f.seek(start)
+            if compressed:
+                fixed = f.read(3 * word)
+                if len(fixed) < 3 * word:
+                    raise SeriesError(f"series frame {path} is truncated (array header at byte "
+                                      f"{start} past the end)")
+                blocks, block_size, last = struct.unpack(fmt[0] + fmt[1] * 3, fixed)
+                if blocks * word > size - start:
+                    raise SeriesError(f"series frame {path} is corrupt: an array header claims "
+                                      f"{blocks} blocks")
+                sizes = struct.unpack(fmt[0] + fmt[1] * blocks, f.read(blocks * word))
+                stored = sum(sizes)
+                claimed = block_size * max(blocks - 1, 0) + (last or block_size) * (blocks > 0)
+                if (start + (3 + blocks) * word + stored > size
+                        or claimed > _MAX_EXPANSION * stored + 65536):
+                    raise SeriesError(f"series frame {path} is corrupt or truncated: an array "
+                                      f"header at byte {start} does not match the file")
+            else:
+                raw = f.read(word)
+                if len(raw) < word or start + word + struct.unpack(fmt, raw)[0] > size:
+                    raise SeriesError(f"series frame {path} is corrupt or truncated: an array "
+                                      f"at byte {start} runs past the end of the file")
+
+
+def _check_frame_complete(reader, data, path) -> None:
+    """Refuse a frame that VTK read without error but with less than its header declares."""
+    n_points, n_cells = data.GetNumberOfPoints(), data.GetNumberOfCells()
+    if hasattr(reader, "GetNumberOfPoints"):  # vtp / vtu: counts from the XML header
+        if reader.GetNumberOfPoints() != n_points or reader.GetNumberOfCells() != n_cells:
+            raise SeriesError(
+                f"series frame {path} is truncated: its header declares "
+                f"{reader.GetNumberOfPoints()} points and {reader.GetNumberOfCells()} cells, "
+                f"{n_points} and {n_cells} could be read")
+    for label, attributes, declared, count in (
+            ("point", data.GetPointData(), reader.GetNumberOfPointArrays(), n_points),
+            ("cell", data.GetCellData(), reader.GetNumberOfCellArrays(), n_cells)):
+        if attributes.GetNumberOfArrays() != declared:
+            raise SeriesError(f"series frame {path} is truncated: {declared} {label} arrays "
+                              f"declared, {attributes.GetNumberOfArrays()} could be read")
+        for i in range(attributes.GetNumberOfArrays()):
+            array = attributes.GetAbstractArray(i)
+            if array.GetNumberOfTuples() != count:
+                raise SeriesError(
+                    f"series frame {path} is corrupt: {label} array {array.GetName()!r} has "
+                    f"{array.GetNumberOfTuples()} values for {count} {label}s")
 
 
 def read_series(path):
