@@ -12,6 +12,7 @@ from filters.splat import lone_particle_radius, splat_dense, splat_sparse
 from filters.splat_anisotropic import (
     ANISOTROPIC_ISO,
     splat_dense_anisotropic,
+    splat_ellipsoids_dense,
     splat_ellipsoids_sparse,
     splat_sparse_anisotropic,
 )
@@ -367,3 +368,43 @@ def test_surface_centres_move_along_the_normal_only():
     lateral = shift - along[:, None] * normal
     assert np.abs(lateral[top]).max() < 1e-6 * S
     assert np.abs(along[top]).max() > 0.02 * S  # the jitter is smoothed out
+
+
+# --- far-apart points (issue 16, item 7) -----------------------------------------------------
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("spread", [1e12, 1e20])
+def test_far_apart_points_are_refused_up_front_not_hung(spread):
+    # Before: a hang at a 1e12 spread (block keys wrapped, one "home block" spanned 1e13
+    # blocks) and an empty grid at 1e20. Block coordinates have 21 bits per axis: the points
+    # are refused before the neighbour search, naming the extent and the limit.
+    a, _ = _lattice((3, 3, 3))
+    pts = np.concatenate([a, a + [spread, 0.0, 0.0]])
+    for splat in (splat_sparse_anisotropic, splat_dense_anisotropic):
+        with pytest.raises(ValueError, match=r"positions lie between .* along x: .* blocks .*"
+                                             r"more than the .* block index holds"):
+            splat(pts, R, CELL)
+    c, G = anisotropic_kernels(pts, R)  # the kernels themselves are fine that far apart
+    assert np.isfinite(G).all()
+    with pytest.raises(ValueError, match="centres lie between"):
+        splat_ellipsoids_sparse(c, G, 1.0, CELL)
+    with pytest.raises(ValueError, match="centres lie between"):
+        splat_ellipsoids_dense(c, G, 1.0, CELL)
+
+
+@pytest.mark.timeout(60)
+def test_far_apart_clusters_inside_the_key_range_are_both_splatted():
+    # 30 km apart at 5 mm voxels is 750,000 blocks: inside the block keys; both clusters are
+    # splatted (each with the field it has alone, translated) and only their blocks are stored
+    a, _ = _lattice((3, 3, 3))
+    shift = np.array([30000.0, 0.0, 0.0])  # 6e6 cells exactly
+    both = splat_sparse_anisotropic(np.concatenate([a, a + shift]), R, CELL)
+    alone = splat_sparse_anisotropic(a, R, CELL)
+    coords = both.block_coords
+    far = coords[:, 0] > 1000
+    assert far.sum() == (~far).sum() == alone.keys.size
+    for mask, offset in ((~far, 0), (far, 750_000)):
+        order = np.lexsort(coords[mask].T[::-1])
+        ref = np.lexsort(alone.block_coords.T[::-1])
+        np.testing.assert_array_equal(coords[mask][order], alone.block_coords[ref] + [offset, 0, 0])
+        assert both.data[mask].min() < 0  # the cluster's inside is there
+        np.testing.assert_allclose(both.data[mask][order], alone.data[ref], rtol=0, atol=1e-5)
