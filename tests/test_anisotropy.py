@@ -6,7 +6,7 @@ import numba
 import numpy as np
 import pytest
 
-from filters.anisotropy import DEFAULTS, anisotropic_kernels, kernel_axes
+from filters.anisotropy import DEFAULTS, anisotropic_kernels, anisotropic_volumes, kernel_axes
 from filters.sparse_grid import DenseField, SparseGrid
 from filters.splat import lone_particle_radius, splat_dense, splat_sparse
 from filters.splat_anisotropic import (
@@ -408,3 +408,20 @@ def test_far_apart_clusters_inside_the_key_range_are_both_splatted():
         np.testing.assert_array_equal(coords[mask][order], alone.block_coords[ref] + [offset, 0, 0])
         assert both.data[mask].min() < 0  # the cluster's inside is there
         np.testing.assert_allclose(both.data[mask][order], alone.data[ref], rtol=0, atol=1e-5)
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("spread", [1e8, 1e300, 1.7e308])
+def test_anisotropic_volumes_of_far_apart_clusters(spread):
+    # Before: "negative dimensions not allowed" at a 1e300 spread (cell counts past int64),
+    # 2.6 GB of cells for a cloud 2e8 m long (one growth step for a one-axis spread), and NaN
+    # where float32 offsets from the corner of a 1e293 m cell lost the kernels.
+    a, _ = _lattice((3, 3, 3))
+    c, G = anisotropic_kernels(a, R)
+    alone = anisotropic_volumes(c, G)
+    pts = np.concatenate([a, a + [spread, 0.0, 0.0], a - [0.0, spread, 0.0]])
+    cf, Gf = anisotropic_kernels(pts, R)
+    assert np.abs(Gf[:27] - G).max() < 1e-5 / H  # the hash path (float64) against the grid
+    v = anisotropic_volumes(cf, Gf)
+    assert np.isfinite(v).all() and v.min() > 0
+    np.testing.assert_allclose(v[:27], alone, rtol=1e-5)  # float64 sums in grown cells
