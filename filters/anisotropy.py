@@ -522,9 +522,11 @@ def _cell_sort(x, origin, inv_cell, dims):
     keys = np.empty(n, np.int64)
     start = np.zeros(nx * ny * nz + 1, np.int64)
     for i in range(n):
-        cx = min(max(int(math.floor((x[i, 0] - origin[0]) * inv_cell)), 0), nx - 1)
-        cy = min(max(int(math.floor((x[i, 1] - origin[1]) * inv_cell)), 0), ny - 1)
-        cz = min(max(int(math.floor((x[i, 2] - origin[2]) * inv_cell)), 0), nz - 1)
+        # clamped in float before the conversion: the same cells, and no undefined int
+        # conversion where x - origin overflows (points +-1.7e308 apart)
+        cx = int(min(max(np.floor((x[i, 0] - origin[0]) * inv_cell), 0.0), nx - 1.0))
+        cy = int(min(max(np.floor((x[i, 1] - origin[1]) * inv_cell), 0.0), ny - 1.0))
+        cz = int(min(max(np.floor((x[i, 2] - origin[2]) * inv_cell), 0.0), nz - 1.0))
         k = (cz * ny + cy) * nx + cx
         keys[i] = k
         start[k + 1] += 1
@@ -545,7 +547,8 @@ def _cell_sort(x, origin, inv_cell, dims):
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _volumes_cells(sc, order, start, origin, cell, dims, reach, sg, smd, need, volumes):
+def _volumes_cells(sc, order, start, origin, cell, dims, reach, sg, smd, need, volumes,
+                   exact=False):
     """SPH volumes under the anisotropic kernels themselves, on centres sorted into cells
     (:func:`_cell_sort`) ``reach`` of which span the longest kernel reach: ``V_j = m_j /
     rho_j`` with ``rho_j = sum_k m_k (8 / pi) det(G_k) P(|G_k (c_j - c_k)|)`` (``P`` the cubic
@@ -553,7 +556,11 @@ def _volumes_cells(sc, order, start, origin, cell, dims, reach, sg, smd, need, v
     included). ``sg`` holds the 6 entries of ``G_k`` and ``smd`` the
     products ``m_k det(G_k)``, both in sorted order; the neighbour cells' kernels are gathered
     once per cell in float32 and summed in a branch-free loop, in a fixed order. Only targets
-    with ``need`` (sorted order) are computed; a cell without any is skipped."""
+    with ``need`` (sorted order) are computed; a cell without any is skipped.
+
+    With ``exact`` every target sums its candidates in float64 relative to itself: for cells
+    grown over a sparse domain, where float32 offsets from a cell corner would lose the
+    kernels (a cell 1e293 m wide) or overflow."""
     nx = dims[0]
     ny = dims[1]
     nz = dims[2]
@@ -574,6 +581,29 @@ def _volumes_cells(sc, order, start, origin, cell, dims, reach, sg, smd, need, v
             continue
         ox, oy, oz, xa, xb, ya, yb, za, zb, total = _cell_window(cidx, dims, reach, start,
                                                                  origin, cell)
+        if exact:
+            for t in range(s0, s1):
+                if not need[t]:
+                    continue
+                rho64 = 0.0
+                for z in range(za, zb + 1):
+                    for y in range(ya, yb + 1):
+                        row = (z * ny + y) * nx
+                        for k in range(start[row + xa], start[row + xb + 1]):
+                            d0 = sc[t, 0] - sc[k, 0]
+                            d1 = sc[t, 1] - sc[k, 1]
+                            d2 = sc[t, 2] - sc[k, 2]
+                            u0 = sg[k, 0] * d0 + sg[k, 1] * d1 + sg[k, 2] * d2
+                            u1 = sg[k, 1] * d0 + sg[k, 3] * d1 + sg[k, 4] * d2
+                            u2 = sg[k, 2] * d0 + sg[k, 4] * d1 + sg[k, 5] * d2
+                            q2 = u0 * u0 + u1 * u1 + u2 * u2
+                            if q2 < 1.0:
+                                q = math.sqrt(q2)
+                                e = 1.0 - q
+                                f = max(0.5 - q, 0.0)
+                                rho64 += smd[k] * (2.0 * e * e * e - 8.0 * f * f * f)
+                volumes[order[t]] = (math.pi / 8.0) / rho64
+            continue
         cx = np.empty(total, np.float32)
         cy = np.empty(total, np.float32)
         cz = np.empty(total, np.float32)
@@ -683,8 +713,13 @@ def _volumes(centres, G, dets, m, need, reach):
     lo, cell, dims = _fitting_cells(centres, reach)
     o, start, sc = _cell_sort(centres, lo, 1.0 / cell, dims)
     g6 = G[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    # float32 offsets from a cell's corner resolve the kernels to ~1e-5 while cells are at most
+    # 64 reaches wide (grown over a sparse domain, see _fitting_cells); wider ones (a domain
+    # ~10^4 reaches across, up to 1e293 m cells for a 1e300 m spread) sum in float64 about
+    # each target, slower but exact
+    grown = cell > 64.0 * reach
     _volumes_cells(sc, o, start, lo, cell, dims, 1, np.ascontiguousarray(g6[o]),
-                   (m * dets)[o], need[o], volumes)
+                   (m * dets)[o], need[o], volumes, grown)
     return volumes * m
 
 
@@ -696,14 +731,29 @@ _MAX_CELLS = 4_000_000
 def _fitting_cells(points, width):
     """Origin, cell size and dims of a grid over ``points`` with cells at least ``width`` wide
     (padded as in NeighborSearch, so that the 27 cells around a point hold all points within
-    ``width``); over a large sparse domain the cells grow until there are at most
-    ``_MAX_CELLS`` (more candidates per cell, the same sums)."""
+    ``width``); over a large sparse domain the cells grow until there are at most about
+    ``_MAX_CELLS`` (up to twice that; more candidates per cell, the same sums)."""
     lo = points.min(axis=0)
-    extent = points.max(axis=0) - lo
+    with np.errstate(over="ignore"):  # +-1.7e308 apart: the extent overflows; cap it
+        extent = np.minimum(points.max(axis=0) - lo, np.finfo(np.float64).max)
     cell = width * (1.0 + 1e-9)
-    count = float(np.prod(np.floor(extent / cell) + 1.0))
-    if count > _MAX_CELLS:
-        cell *= (count / _MAX_CELLS) ** (1.0 / 3.0)
+    with np.errstate(over="ignore"):
+        count = float(np.prod(np.floor(extent / cell) + 1.0))
+    # grow the cells until they fit: one step by the cube root of the excess for a cloud spread
+    # along all three axes (then within the +1 per axis of the budget, as always); more steps,
+    # by the root of as many axes as the cloud spreads along, for thinner spreads (one step
+    # used to leave a cloud spread along one axis with up to 4e6 ** (2/3) times too many cells,
+    # and cell counts past int64 at a 1e300 spread)
+    first = True
+    while count > (_MAX_CELLS if first else 2 * _MAX_CELLS):
+        if math.isinf(count):  # extent / cell overflowed (points ~1e308 apart)
+            cell = max(cell, float(extent.max()) / _MAX_CELLS)
+        else:
+            axes = max(int((np.floor(extent / cell) > 0).sum()), 1)
+            cell *= max((count / _MAX_CELLS) ** (1.0 / axes), 1.0 + 1e-6)
+        first = False
+        with np.errstate(over="ignore"):
+            count = float(np.prod(np.floor(extent / cell) + 1.0))
     return lo, cell, (np.floor(extent / cell) + 1.0).astype(np.int64)
 
 
@@ -820,12 +870,13 @@ def _grid_cells(positions, search, backend):
     padded as in NeighborSearch, so that rounding in the binning cannot put a neighbour beyond
     the cells searched. Returns ``(origin, cell, dims, reach)``."""
     lo = positions.min(axis=0)
-    extent = positions.max(axis=0) - lo
-    for reach in (2, 1):
-        cell = search / reach * (1.0 + 1e-9)
-        dims = np.floor(extent / cell) + 1.0
-        if float(np.prod(dims)) <= _MAX_CELLS:
-            return lo, cell, dims.astype(np.int64), reach
+    with np.errstate(over="ignore"):  # points ~1e308 apart: inf cells, hence the hash
+        extent = positions.max(axis=0) - lo
+        for reach in (2, 1):
+            cell = search / reach * (1.0 + 1e-9)
+            dims = np.floor(extent / cell) + 1.0
+            if float(np.prod(dims)) <= _MAX_CELLS:
+                return lo, cell, dims.astype(np.int64), reach
     if backend == "grid":
         raise ValueError(f"the grid backend would need {float(np.prod(dims)):.3g} cells (max "
                          f"{_MAX_CELLS}); use backend='hash' for sparse or unbounded domains")

@@ -48,13 +48,14 @@ from .noise import (
     _DRIFT,
     _is_colliders_object,
     _tables,
+    check_top_frequency,
     curl_jacobian_point,
     curl_point,
     fbm_value,
     fbm_value_grad,
     pack_colliders,
 )
-from .validation import check_finite_vector, check_int, check_points, check_range
+from .validation import check_finite, check_finite_vector, check_int, check_points, check_range
 
 __all__ = [
     "Field",
@@ -311,7 +312,7 @@ def _jacobian_many(kinds, params, tables, colliders, pts, vel, has_vel, t, out, 
 
 def _inputs(points, t, velocities):
     pts = check_points("points", points)
-    t = check_range("t", t)
+    t = check_finite("t", t)
     if velocities is None:
         vel = np.zeros((1, 3))
         has_vel = False
@@ -580,13 +581,14 @@ class Vortex(Field):
 
 
 def _check_noise(obj):
-    object.__setattr__(obj, "frequency", check_range("frequency", obj.frequency, 0.0, math.inf,
-                                                     low_inclusive=False))
+    object.__setattr__(obj, "frequency", check_finite("frequency", obj.frequency, 0.0, math.inf,
+                                                      low_inclusive=False))
     object.__setattr__(obj, "octaves", check_int("octaves", obj.octaves, 1, MAX_OCTAVES))
     object.__setattr__(obj, "lacunarity", check_range("lacunarity", obj.lacunarity, 1.0, 16.0))
     object.__setattr__(obj, "gain", check_range("gain", obj.gain, 0.0, 1.0))
     object.__setattr__(obj, "seed", check_int("seed", obj.seed, 0, (1 << 63) - 3))
-    object.__setattr__(obj, "time_scale", check_range("time_scale", obj.time_scale))
+    object.__setattr__(obj, "time_scale", check_finite("time_scale", obj.time_scale))
+    check_top_frequency(obj.frequency, obj.octaves, obj.lacunarity)
 
 
 @dataclass(frozen=True, eq=False)
@@ -672,10 +674,10 @@ class CurlNoiseVelocity(Field):
 
     def __post_init__(self):
         object.__setattr__(self, "amplitude",
-                           check_range("amplitude", self.amplitude, 0.0, math.inf))
+                           check_finite("amplitude", self.amplitude, 0.0, math.inf))
         _check_noise(self)
         object.__setattr__(self, "ramp_distance",
-                           check_range("ramp_distance", self.ramp_distance, 0.0, math.inf))
+                           check_finite("ramp_distance", self.ramp_distance, 0.0, math.inf))
         object.__setattr__(self, "base_velocity", tuple(
             check_finite_vector("base_velocity", self.base_velocity, 3).tolist()))
         colliders = self.colliders
@@ -751,8 +753,9 @@ def noise_variation(points, low: float, high: float, *, ids=None, frequency: flo
     pts = check_points("points", points)
     low = check_range("low", low)
     high = check_range("high", high, low, math.inf)
-    frequency = check_range("frequency", frequency, 0.0, math.inf, low_inclusive=False)
+    frequency = check_finite("frequency", frequency, 0.0, math.inf, low_inclusive=False)
     octaves = check_int("octaves", octaves, 1, MAX_OCTAVES)
+    check_top_frequency(frequency, octaves, 2.0)
     seed = check_int("seed", seed, 0, (1 << 63) - 1)
     if ids is None:
         id_array = np.zeros(1, dtype=np.int64)

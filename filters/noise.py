@@ -34,6 +34,16 @@ metres, so a fractal field evolves rather than translating rigidly; and because 
 not depend on ``x`` every spatial derivative, hence the zero divergence of curl noise, holds at
 every ``t``.  ``time_scale`` is in lattice cells per second.
 
+Domain
+------
+Every function is defined for all finite inputs and returns values in its documented range: the
+lattice coordinate wraps as in the reference, ``floor(x) mod 256``, computed exactly for any
+float64 (clamping to ``+-2**60`` first, where every float is a multiple of 256, so no value
+changes; see ``_clamp_lattice``). Wrapping rather than refusing large coordinates because the
+result is well defined there (noise is periodic with period 256 lattice cells) and a clamp costs
+nothing measurable. NaN or infinite points, times and parameters raise ValueError naming the
+parameter before any work, as does a last octave whose frequency overflows.
+
 Implementation notes
 --------------------
 Point-level kernels (``perlin_value``, ``perlin_value_grad``, ``perlin_value_grad_hess``,
@@ -61,7 +71,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit, prange
 
-from .validation import check_finite_vector, check_int, check_points, check_range
+from .validation import check_finite, check_finite_vector, check_int, check_points, check_range
 
 __all__ = [
     "PERMUTATION",
@@ -81,6 +91,7 @@ __all__ = [
     "pack_colliders",
     "signed_distance",
     "MAX_OCTAVES",
+    "check_top_frequency",
 ]
 
 #: Ken Perlin's published permutation of 0..255 (Perlin 2002, reference implementation).
@@ -125,6 +136,9 @@ _OCTAVE_SHIFT = np.array(
 _OCTAVE_SHIFT.setflags(write=False)
 
 # Unit drift directions of the three potentials for time-varying noise.
+#: Lattice coordinates are clamped to +-2**60 before ``floor`` (see :func:`_clamp_lattice`).
+_WRAP_LIMIT = float(2**60)
+
 _DRIFT = np.array([[0.0, 0.6, 0.8], [0.8, 0.0, 0.6], [0.6, 0.8, 0.0]], dtype=np.float64)
 _DRIFT.setflags(write=False)
 
@@ -257,12 +271,33 @@ def _grad(h, x, y, z):
 
 
 @njit(cache=True, inline="always")
+def _clamp_lattice(x):
+    """``x`` clamped to ``[-2**60, 2**60]``, which changes no noise value (see below).
+
+    The reference wraps the lattice coordinate, ``floor(x) & 255``, i.e. ``floor(x) mod 256``.
+    Every float64 with ``|x| >= 2**60`` is a multiple of 256 (the spacing of floats there is
+    ``2**8``), so there ``floor(x) mod 256 = 0`` and the fractional part is 0, exactly as at
+    ``+-2**60``: the clamp keeps the float-to-int64 conversion of ``floor(x)`` in range (an
+    out-of-range conversion is undefined behaviour; it returned values of ~1e116 at 1e19 and NaN
+    at 1e300) without changing any result, and it maps a coordinate that overflowed to +-inf
+    (``frequency * x`` near the float64 limit) to the same limit. ``min``/``max`` compile to
+    two vector instructions: the loops still vectorise (perlin3 on 1M points: +3 %, fbm3 and
+    curl noise within the noise of the timing). NaN is not handled here: the public functions
+    refuse it before any work.
+    """
+    return min(max(x, -_WRAP_LIMIT), _WRAP_LIMIT)
+
+
+@njit(cache=True, inline="always")
 def perlin_value(p, x, y, z):
     """Improved noise at (x, y, z), exactly as Perlin 2002.
 
     ``p`` is a kernel table (512,) int32 (permutation in the low 8 bits, gradient code above;
     see ``_hash_table``), e.g. a row of :attr:`CurlNoise.tables`.
     """
+    x = _clamp_lattice(x)
+    y = _clamp_lattice(y)
+    z = _clamp_lattice(z)
     fx = math.floor(x)
     fy = math.floor(y)
     fz = math.floor(z)
@@ -312,6 +347,9 @@ def perlin_value_grad(p, x, y, z):
     The value is computed with the reference's operations, so it equals :func:`perlin_value`
     to the bit.
     """
+    x = _clamp_lattice(x)
+    y = _clamp_lattice(y)
+    z = _clamp_lattice(z)
     fx = math.floor(x)
     fy = math.floor(y)
     fz = math.floor(z)
@@ -378,6 +416,9 @@ def perlin_value_grad_hess(p, x, y, z):
         ``W(u) W(v) W(w) (g . d)``.
     """
     n, nx, ny, nz = perlin_value_grad(p, x, y, z)
+    x = _clamp_lattice(x)
+    y = _clamp_lattice(y)
+    z = _clamp_lattice(z)
     fx = math.floor(x)
     fy = math.floor(y)
     fz = math.floor(z)
@@ -642,7 +683,7 @@ class _BallSDF:
 
     def __post_init__(self):
         center = check_finite_vector("center", self.center, 3)
-        radius = check_range("radius", self.radius, 0.0, math.inf, low_inclusive=False)
+        radius = check_finite("radius", self.radius, 0.0, math.inf, low_inclusive=False)
         object.__setattr__(self, "center", tuple(center.tolist()))
         object.__setattr__(self, "radius", radius)
 
@@ -1147,7 +1188,7 @@ def _potential_many(tables, colliders, pts, t, amplitude, frequency, octaves, la
 # Public array API
 # ---------------------------------------------------------------------------------------------
 def _check_frequency(frequency) -> float:
-    return check_range("frequency", frequency, 0.0, math.inf, low_inclusive=False)
+    return check_finite("frequency", frequency, 0.0, math.inf, low_inclusive=False)
 
 
 def _points_or_scalars(x, y, z):
@@ -1184,6 +1225,16 @@ def perlin3(x, y=None, z=None, *, seed: int = 0, frequency: float = 1.0):
     -------
     float or (N,) float64 array
         Noise values, in about [-1, 1]; exactly 0 at every integer lattice point.
+
+    Notes
+    -----
+    Defined for every finite input: the lattice coordinate wraps as in the reference,
+    ``floor(x) mod 256``, computed exactly for any float64 (beyond ``|x| = 2**52`` floats have
+    no fractional part and beyond ``2**60`` they are multiples of 256, so the noise there is
+    that at ``x mod 256``, an integer lattice coordinate). The reference's Java ``(int)`` cast
+    agrees for ``|floor(x)| < 2**31`` and saturates beyond it; we keep the exact wrap rather
+    than copy the saturation, so the noise stays periodic with period 256 for all inputs.
+    NaN or infinite coordinates raise ValueError naming the argument.
 
     Examples
     --------
@@ -1254,11 +1305,22 @@ def perlin3_hessian(points, *, seed: int = 0, frequency: float = 1.0):
     return out, grad, hess
 
 
-def _check_fractal(octaves, lacunarity, gain):
+def _check_fractal(octaves, lacunarity, gain, frequency=1.0):
     octaves = check_int("octaves", octaves, 1, MAX_OCTAVES)
     lacunarity = check_range("lacunarity", lacunarity, 1.0, 16.0)
     gain = check_range("gain", gain, 0.0, 1.0)
+    check_top_frequency(frequency, octaves, lacunarity)
     return octaves, lacunarity, gain
+
+
+def check_top_frequency(frequency: float, octaves: int, lacunarity: float) -> None:
+    """Refuse a last octave whose frequency ``frequency * lacunarity**(octaves - 1)`` overflows
+    float64 (its coordinates and gradients would be inf or NaN)."""
+    top = float(frequency) * float(lacunarity) ** (int(octaves) - 1)
+    if not math.isfinite(top):
+        raise ValueError(
+            f"frequency * lacunarity**(octaves - 1) (the last octave's frequency) must be finite, "
+            f"got frequency = {frequency!r}, lacunarity = {lacunarity!r}, octaves = {octaves}")
 
 
 def fbm3(points, *, octaves: int = 4, lacunarity: float = 2.0, gain: float = 0.5, seed: int = 0,
@@ -1301,9 +1363,9 @@ def fbm3(points, *, octaves: int = 4, lacunarity: float = 2.0, gain: float = 0.5
     """
     pts = check_points("points", points)
     frequency = _check_frequency(frequency)
-    octaves, lacunarity, gain = _check_fractal(octaves, lacunarity, gain)
-    time = check_range("time", time)
-    time_scale = check_range("time_scale", time_scale)
+    octaves, lacunarity, gain = _check_fractal(octaves, lacunarity, gain, frequency)
+    time = check_finite("time", time)
+    time_scale = check_finite("time_scale", time_scale)
     table = _kernel_table(seed)
     s = time * time_scale
     ox, oy, oz = (s * _DRIFT[0]).tolist()
@@ -1363,12 +1425,12 @@ class CurlNoise:
     _packed: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        check_range("amplitude", self.amplitude, 0.0, math.inf)
+        check_finite("amplitude", self.amplitude, 0.0, math.inf)
         _check_frequency(self.frequency)
-        _check_fractal(self.octaves, self.lacunarity, self.gain)
+        _check_fractal(self.octaves, self.lacunarity, self.gain, self.frequency)
         check_int("seed", self.seed, -(1 << 63), (1 << 64) - 3)
-        check_range("time_scale", self.time_scale)
-        check_range("ramp_distance", self.ramp_distance, 0.0, math.inf)
+        check_finite("time_scale", self.time_scale)
+        check_finite("ramp_distance", self.ramp_distance, 0.0, math.inf)
         object.__setattr__(self, "base_velocity", tuple(
             check_finite_vector("base_velocity", self.base_velocity, 3).tolist()))
         colliders = self.colliders
@@ -1401,7 +1463,7 @@ class CurlNoise:
     def velocity(self, points, t: float = 0.0) -> np.ndarray:
         """Velocity (m/s) at ``points`` (N, 3) (m) and time ``t`` (s); returns (N, 3)."""
         pts = check_points("points", points)
-        t = check_range("t", t)
+        t = check_finite("t", t)
         out = np.empty((pts.shape[0], 3))
         _curl_array(self._tables, self._packed, pts, t, *self._args(t), out)
         return out
@@ -1413,7 +1475,7 @@ class CurlNoise:
     def jacobian(self, points, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Velocity (N, 3) (m/s) and its Jacobian ``dv_i/dx_j`` (N, 3, 3) (1/s)."""
         pts = check_points("points", points)
-        t = check_range("t", t)
+        t = check_finite("t", t)
         n = pts.shape[0]
         vel = np.empty((n, 3))
         jac = np.empty((n, 3, 3))
@@ -1423,7 +1485,7 @@ class CurlNoise:
     def potential(self, points, t: float = 0.0) -> np.ndarray:
         """The (ramped) vector potential psi (m^2/s) at ``points``; returns (N, 3)."""
         pts = check_points("points", points)
-        t = check_range("t", t)
+        t = check_finite("t", t)
         out = np.empty((pts.shape[0], 3))
         _potential_many(self._tables, self._packed, pts, t, *self._args(t), out)
         return out

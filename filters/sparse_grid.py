@@ -17,6 +17,16 @@ evaluating every voxel would give wherever the surface is; this is what the test
 
 A byte budget guards every allocation that grows with the grid: :class:`GridTooLargeError`
 (a :class:`ValueError`) says how much was needed and how to get under the budget.
+
+Extent. A block key packs the three block coordinates, 21 bits each, into one int64, so
+block coordinates live in ``[-2**20, 2**20)``: positions within about ``2**20 * block_size *
+cell_size`` of the origin (42 km at the default 8 voxels of 5 mm). The splats refuse points
+beyond that up front (:func:`check_block_range`, a ValueError naming the extent and the
+limit) instead of letting the keys wrap. The keys stay absolute rather than relative to the
+cloud: relative keys would reach at most twice as far (a span of ``2**21`` blocks, still short
+of two clusters 100 km apart at 5 mm voxels, which need 2.5 million blocks) but change what a
+key means for every consumer of :attr:`SparseGrid.keys`. Two clusters anywhere inside the range
+are handled: the grid holds only their own blocks, whatever the distance between them.
 """
 
 from __future__ import annotations
@@ -28,7 +38,10 @@ from numba import njit, prange
 
 __all__ = [
     "DEFAULT_MAX_BYTES",
+    "BLOCK_LIMIT",
     "GridTooLargeError",
+    "check_block_range",
+    "format_bytes",
     "SparseGrid",
     "DenseField",
     "check_budget",
@@ -44,9 +57,89 @@ _BITS = 21
 _M21 = (1 << 21) - 1
 _EMPTY = -1
 
+#: Block coordinates a key holds: ``[-BLOCK_LIMIT, BLOCK_LIMIT)`` along each axis.
+BLOCK_LIMIT = _OFF
+
+#: Blocks kept free between the points' home blocks and the ends of the key range: the
+#: kernels' reach (at most 65 blocks: the splats refuse supports above 64 blocks), corner
+#: samples and the dense box's outer voxel layer (1), contouring bricks (up to 64 blocks wide),
+#: and one for rounding. Lookups there must not wrap onto another block's key.
+_MARGIN = 65 + 1 + 64 + 1
+
 
 class GridTooLargeError(ValueError):
     """A grid would need more memory than the configured budget ``max_bytes`` allows."""
+
+
+def format_bytes(nbytes) -> str:
+    """A byte count for messages: ``"512 bytes"``, ``"1.5 KiB"``, ``"3.052 MiB"``, ``"4 GiB"``
+    (binary units, 4 significant digits; never rounds a non-zero size to 0)."""
+    nbytes = float(nbytes)
+    if abs(nbytes) < 1024:
+        return f"{nbytes:.0f} byte" + ("" if nbytes == 1 else "s")
+    for unit in ("KiB", "MiB", "GiB", "TiB", "PiB"):
+        nbytes /= 1024.0
+        if abs(nbytes) < 1024 or unit == "PiB":
+            return f"{nbytes:.4g} {unit}"
+    raise AssertionError  # unreachable
+
+
+def check_block_range(name: str, points: np.ndarray, cell_size: float, block_size: int) -> None:
+    """Raise ValueError unless every block holding a point has a key (see the module docstring).
+
+    Block ``floor(x / (block_size * cell_size))`` of every coordinate, with a margin of
+    ``_MARGIN`` blocks for the kernels' reach and contouring, must lie in
+    ``[-BLOCK_LIMIT, BLOCK_LIMIT)``. Vectorised (a min and a max over the points); call it
+    before computing any key.
+
+    Parameters
+    ----------
+    name : str
+        The parameter holding the points, for the message.
+    points : (N, 3) float64
+        Finite positions (m).
+    cell_size : float
+        Voxel edge (m).
+    block_size : int
+        Voxels per block edge.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, the axis, the points' extent (m and blocks) and the limit: "span N
+        blocks, more than the index holds" when no translation could fit the points, otherwise
+        "outside ..., translate the points nearer the origin".
+    """
+    if points.shape[0] == 0:
+        return
+    inv = 1.0 / cell_size
+    lo_m = points.min(axis=0)
+    hi_m = points.max(axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        lo = np.floor(lo_m * inv / block_size)  # as the kernels compute home blocks
+        hi = np.floor(hi_m * inv / block_size)
+    first = -_OFF + _MARGIN
+    last = _OFF - 1 - _MARGIN
+    bad = np.flatnonzero(~((lo >= first) & (hi <= last)))
+    if bad.size == 0:
+        return
+    a = int(bad[0])
+    axis = "xyz"[a]
+    edge = block_size * cell_size
+    span = hi[a] - lo[a] + 1.0
+    capacity = last - first + 1
+    where = (f"{name} lie between {lo_m[a]:.6g} and {hi_m[a]:.6g} m along {axis}: {span:.6g} "
+             f"blocks of block_size * cell_size = {block_size} * {cell_size:g} = {edge:g} m")
+    if not span <= capacity:
+        raise ValueError(
+            f"{where}, more than the {capacity} (2^21 less {2 * _MARGIN} for the kernels' reach "
+            f"and contouring) that the block index holds per axis; split the cloud or increase "
+            f"cell_size (or block_size)")
+    raise ValueError(
+        f"{where}, reaching block {lo[a] if lo[a] < first else hi[a]:.6g}; the block index "
+        f"holds blocks {first} to {last} per axis (|{axis}| up to about {last * edge:.6g} m "
+        f"from the origin at this cell_size and block_size); translate the points nearer the "
+        f"origin (the lattice is global), or increase cell_size (or block_size)")
 
 
 def check_budget(nbytes: int, max_bytes: int, what: str) -> None:
@@ -62,10 +155,14 @@ def check_budget(nbytes: int, max_bytes: int, what: str) -> None:
         What is being allocated, for the message.
     """
     if nbytes > max_bytes:
+        need = format_bytes(nbytes)
+        limit = format_bytes(max_bytes)
+        if need == limit:  # too close to tell apart at 4 digits
+            need = f"{need} ({int(nbytes):,} bytes)"
+            limit = f"{limit} ({int(max_bytes):,} bytes)"
         raise GridTooLargeError(
-            f"{what} needs {nbytes / 2**20:.1f} MiB, above max_bytes = {max_bytes / 2**20:.1f} "
-            f"MiB; increase cell_size (memory falls as its cube), use the sparse grid, or raise "
-            f"max_bytes"
+            f"{what} needs {need}, above max_bytes = {limit}; increase cell_size (memory falls "
+            f"as its cube), use the sparse grid, or raise max_bytes"
         )
 
 

@@ -54,6 +54,7 @@ import numpy as np
 from numba import njit, prange
 
 from .sparse_grid import (
+    BLOCK_LIMIT,
     DEFAULT_MAX_BYTES,
     DenseField,
     GridTooLargeError,
@@ -61,6 +62,7 @@ from .sparse_grid import (
     _index_keys,
     _pack,
     _unpack,
+    check_block_range,
     check_budget,
     corner_index,
     dilate_keys,
@@ -722,6 +724,8 @@ def _grid(positions, radius, cell_size, kernel, support, iso, block_size, blobbi
                        inside_value, outside_value)
     if n == 0:
         return empty
+    # before any key is computed: far-apart points must not wrap past 2^20 blocks
+    check_block_range("positions", positions, cell_size, bsz)
     check_budget(n * 96, max_bytes, f"particle bookkeeping for {n} particles")
     # bin particles by home block (counting sort: deterministic)
     keys = _home_keys(positions, 1.0 / cell_size, bsz)
@@ -848,7 +852,11 @@ def splat_sparse(positions, radius, cell_size, *, kernel: str = "sph", support=N
     Parameters
     ----------
     positions : (N, 3) float64
-        Particle centres (m). NaN or infinite values raise ValueError.
+        Particle centres (m). NaN or infinite values raise ValueError, and so do points
+        whose blocks the 64-bit block keys cannot hold (21 bits per axis: within about
+        ``2**20 * block_size * cell_size`` of the origin, 42 km at 8 voxels of 5 mm; see
+        :func:`filters.sparse_grid.check_block_range`). Far-apart clusters inside that range
+        are splatted in full: the grid holds only the blocks near each.
     radius : float or (N,) float64
         Particle radii ``r`` (m), > 0.
     cell_size : float
@@ -895,6 +903,7 @@ def splat_dense(positions, radius, cell_size, *, kernel: str = "sph", support=No
     positions = check_points("positions", positions)
     if positions.shape[0] and max_bytes is not None:
         cs = check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
+        check_block_range("positions", positions, cs, check_int("block_size", block_size, 4, 64))
         sup = support if support is not None else DEFAULTS.get(kernel, {"support": 1.0})["support"]
         rmax = float(np.max(radius))
         ext = (positions.max(axis=0) - positions.min(axis=0) + 2 * sup * rmax) / cs + 3
@@ -990,6 +999,7 @@ def interpolate_attributes(points, positions, radius, values, *, cell_size: floa
     if positions.shape[0] == 0 or points.shape[0] == 0:
         out = np.zeros((points.shape[0], vals2.shape[1]))
         return out[:, 0] if flat else out
+    check_block_range("positions", positions, cell_size, bsz)
     keys = _home_keys(positions, 1.0 / cell_size, bsz)
     table, ranks, unique, inverse = _index_keys(keys)
     order, start = _counting_sort(inverse, unique.size)
@@ -998,6 +1008,17 @@ def interpolate_attributes(points, positions, radius, values, *, cell_size: floa
     V = np.ascontiguousarray(vals2[order])
     reach = int(math.ceil((Hs.max() + 1.0) / bsz))
     X = np.ascontiguousarray(points / cell_size)
-    out = _shepard(X, P, Hs, V, start, table, ranks, reach, bsz, _KID[kernel],
-                   np.float32(blobbiness), np.float32(math.exp(-blobbiness)))
+    # points whose neighbouring blocks leave the key range are farther than any support from
+    # every particle (those keep a margin of more than ``reach`` blocks): they get 0, as points
+    # with no particle near do, and are not looked up (their keys would wrap)
+    with np.errstate(over="ignore", invalid="ignore"):
+        home = np.floor(X / bsz)
+    near = ((home >= -BLOCK_LIMIT + reach + 1) & (home <= BLOCK_LIMIT - reach - 2)).all(axis=1)
+    args = (P, Hs, V, start, table, ranks, reach, bsz, _KID[kernel], np.float32(blobbiness),
+            np.float32(math.exp(-blobbiness)))
+    if near.all():
+        out = _shepard(X, *args)
+    else:
+        out = np.zeros((X.shape[0], V.shape[1]))
+        out[near] = _shepard(np.ascontiguousarray(X[near]), *args)
     return out[:, 0] if flat else out

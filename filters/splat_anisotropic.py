@@ -59,6 +59,7 @@ from .sparse_grid import (
     _insert,
     _pack,
     _unpack,
+    check_block_range,
     check_budget,
     corner_index,
     lookup,
@@ -464,6 +465,8 @@ def _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
         return SparseGrid(cell_size, bsz, np.zeros(0, np.int64),
                           np.zeros((0, bsz, bsz, bsz), np.float32), np.zeros(0, np.int64),
                           -iso, iso)
+    # before any key is computed: far-apart centres must not wrap past 2^20 blocks
+    check_block_range("centres", centres, cell_size, bsz)
     check_budget(n * 200, max_bytes, f"particle bookkeeping for {n} particles")
     keys = _home_keys(centres, 1.0 / cell_size, bsz)
     table, ranks, unique, inverse = _index_keys(keys)
@@ -533,7 +536,9 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
     Parameters
     ----------
     centres : (N, 3) float64
-        Kernel centres ``c_j`` (m).
+        Kernel centres ``c_j`` (m), within the block keys' range (about ``2**20 * block_size
+        * cell_size`` of the origin; :func:`filters.sparse_grid.check_block_range`), else
+        ValueError.
     G : (N, 3, 3) float64
         Symmetric positive-definite kernel matrices (1/m): the kernel of particle ``j`` is
         ``K(|G_j (x - c_j)|^2)``, zero outside the ellipsoid ``|G_j r| < 1``.
@@ -572,6 +577,7 @@ def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "s
     centres = check_points("centres", centres)
     if centres.shape[0]:
         cs = check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
+        check_block_range("centres", centres, cs, check_int("block_size", block_size, 4, 64))
         Gc = np.asarray(G, dtype=np.float64)
         if Gc.shape == (centres.shape[0], 3, 3):
             ext_m = float(np.sqrt(np.max(np.linalg.inv(Gc @ Gc)[:, [0, 1, 2], [0, 1, 2]])))
@@ -611,14 +617,18 @@ def _anisotropic_inputs(positions, radius, kernel, support, options):
     return centres, G, amplitude, kernel
 
 
-def _check_grid_args(cell_size, iso, block_size, blobbiness, max_bytes):
-    """Validate the grid parameters before the kernels are computed."""
-    check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
+def _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes):
+    """Validate the grid parameters and the extent of the positions before the kernels are
+    computed (points the block keys cannot hold are refused before the neighbour search)."""
+    positions = check_points("positions", positions)
+    cell_size = check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
     if iso is not None:
         check_range("iso", iso, 0.0, math.inf, low_inclusive=False)
-    check_int("block_size", block_size, 4, 64)
+    block_size = check_int("block_size", block_size, 4, 64)
     check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
     check_int("max_bytes", max_bytes, 1)
+    check_block_range("positions", positions, cell_size, block_size)
+    return positions
 
 
 def _options(neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis, isotropy):
@@ -646,7 +656,8 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
     Parameters
     ----------
     positions : (N, 3) float64
-        Particle centres (m).
+        Particle centres (m); points the block keys cannot hold (as in
+        :func:`filters.splat.splat_sparse`) raise ValueError before any kernel is computed.
     radius : float or (N,) float64
         Particle radii ``r`` (m), > 0.
     cell_size : float
@@ -668,7 +679,7 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
     -------
     SparseGrid
     """
-    _check_grid_args(cell_size, iso, block_size, blobbiness, max_bytes)
+    positions = _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes)
     centres, G, amplitude, kernel = _anisotropic_inputs(
         positions, radius, kernel, support,
         _options(neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis,
@@ -690,7 +701,7 @@ def splat_dense_anisotropic(positions, radius, cell_size, *, kernel: str = "sph"
     """Dense counterpart of :func:`splat_sparse_anisotropic` (a drop-in for
     :func:`filters.splat.splat_dense`); same parameters, returns a
     :class:`filters.sparse_grid.DenseField`."""
-    _check_grid_args(cell_size, iso, block_size, blobbiness, max_bytes)
+    positions = _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes)
     centres, G, amplitude, kernel = _anisotropic_inputs(
         positions, radius, kernel, support,
         _options(neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis,

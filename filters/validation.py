@@ -7,8 +7,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_range", "check_int", "check_bool", "check_finite_vector", "check_points",
-           "check_choice"]
+__all__ = ["check_range", "check_finite", "check_int", "check_bool", "check_finite_vector",
+           "check_points", "check_choice"]
 
 
 def check_range(name: str, value, low: float = -math.inf, high: float = math.inf, *,
@@ -32,6 +32,24 @@ def check_range(name: str, value, low: float = -math.inf, high: float = math.inf
         left = "[" if low_inclusive else "("
         right = "]" if high_inclusive else ")"
         raise ValueError(f"{name} must be in {left}{low:g}, {high:g}{right}, got {value!r}")
+    return value
+
+
+def check_finite(name: str, value, low: float = -math.inf, high: float = math.inf, *,
+                 low_inclusive: bool = True, high_inclusive: bool = True) -> float:
+    """Like :func:`check_range`, but +-inf is refused too (even where the range is unbounded).
+
+    Raises
+    ------
+    TypeError
+        If ``value`` is not a real number.
+    ValueError
+        If it is NaN, infinite or outside the range, naming ``name``.
+    """
+    value = check_range(name, value, low, high, low_inclusive=low_inclusive,
+                        high_inclusive=high_inclusive)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
     return value
 
 

@@ -6,12 +6,13 @@ import numba
 import numpy as np
 import pytest
 
-from filters.anisotropy import DEFAULTS, anisotropic_kernels, kernel_axes
+from filters.anisotropy import DEFAULTS, anisotropic_kernels, anisotropic_volumes, kernel_axes
 from filters.sparse_grid import DenseField, SparseGrid
 from filters.splat import lone_particle_radius, splat_dense, splat_sparse
 from filters.splat_anisotropic import (
     ANISOTROPIC_ISO,
     splat_dense_anisotropic,
+    splat_ellipsoids_dense,
     splat_ellipsoids_sparse,
     splat_sparse_anisotropic,
 )
@@ -367,3 +368,60 @@ def test_surface_centres_move_along_the_normal_only():
     lateral = shift - along[:, None] * normal
     assert np.abs(lateral[top]).max() < 1e-6 * S
     assert np.abs(along[top]).max() > 0.02 * S  # the jitter is smoothed out
+
+
+# --- far-apart points (issue 16, item 7) -----------------------------------------------------
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("spread", [1e12, 1e20])
+def test_far_apart_points_are_refused_up_front_not_hung(spread):
+    # Before: a hang at a 1e12 spread (block keys wrapped, one "home block" spanned 1e13
+    # blocks) and an empty grid at 1e20. Block coordinates have 21 bits per axis: the points
+    # are refused before the neighbour search, naming the extent and the limit.
+    a, _ = _lattice((3, 3, 3))
+    pts = np.concatenate([a, a + [spread, 0.0, 0.0]])
+    for splat in (splat_sparse_anisotropic, splat_dense_anisotropic):
+        with pytest.raises(ValueError, match=r"positions lie between .* along x: .* blocks .*"
+                                             r"more than the .* block index holds"):
+            splat(pts, R, CELL)
+    c, G = anisotropic_kernels(pts, R)  # the kernels themselves are fine that far apart
+    assert np.isfinite(G).all()
+    with pytest.raises(ValueError, match="centres lie between"):
+        splat_ellipsoids_sparse(c, G, 1.0, CELL)
+    with pytest.raises(ValueError, match="centres lie between"):
+        splat_ellipsoids_dense(c, G, 1.0, CELL)
+
+
+@pytest.mark.timeout(60)
+def test_far_apart_clusters_inside_the_key_range_are_both_splatted():
+    # 30 km apart at 5 mm voxels is 750,000 blocks: inside the block keys; both clusters are
+    # splatted (each with the field it has alone, translated) and only their blocks are stored
+    a, _ = _lattice((3, 3, 3))
+    shift = np.array([30000.0, 0.0, 0.0])  # 6e6 cells exactly
+    both = splat_sparse_anisotropic(np.concatenate([a, a + shift]), R, CELL)
+    alone = splat_sparse_anisotropic(a, R, CELL)
+    coords = both.block_coords
+    far = coords[:, 0] > 1000
+    assert far.sum() == (~far).sum() == alone.keys.size
+    for mask, offset in ((~far, 0), (far, 750_000)):
+        order = np.lexsort(coords[mask].T[::-1])
+        ref = np.lexsort(alone.block_coords.T[::-1])
+        np.testing.assert_array_equal(coords[mask][order], alone.block_coords[ref] + [offset, 0, 0])
+        assert both.data[mask].min() < 0  # the cluster's inside is there
+        np.testing.assert_allclose(both.data[mask][order], alone.data[ref], rtol=0, atol=1e-5)
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("spread", [1e8, 1e300, 1.7e308])
+def test_anisotropic_volumes_of_far_apart_clusters(spread):
+    # Before: "negative dimensions not allowed" at a 1e300 spread (cell counts past int64),
+    # 2.6 GB of cells for a cloud 2e8 m long (one growth step for a one-axis spread), and NaN
+    # where float32 offsets from the corner of a 1e293 m cell lost the kernels.
+    a, _ = _lattice((3, 3, 3))
+    c, G = anisotropic_kernels(a, R)
+    alone = anisotropic_volumes(c, G)
+    pts = np.concatenate([a, a + [spread, 0.0, 0.0], a - [0.0, spread, 0.0]])
+    cf, Gf = anisotropic_kernels(pts, R)
+    assert np.abs(Gf[:27] - G).max() < 1e-5 / H  # the hash path (float64) against the grid
+    v = anisotropic_volumes(cf, Gf)
+    assert np.isfinite(v).all() and v.min() > 0
+    np.testing.assert_allclose(v[:27], alone, rtol=1e-5)  # float64 sums in grown cells

@@ -344,3 +344,63 @@ def test_colliders_module_objects_are_accepted():
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="boxes"):
         CurlNoise(colliders=Colliders().add_box((0, 0, 0), (1, 1, 1)), ramp_distance=0.1)
+
+
+# --- the whole finite domain (issue 16, item 7) -------------------------------------------------
+@pytest.mark.parametrize("far", [1e19, 1e300, -1e300, 2.0**60, -(2.0**63), 1.7e308])
+def test_noise_is_defined_for_every_finite_coordinate(far):
+    # floor(x) mod 256 wraps the lattice as the reference does; every float64 with |x| >= 2**60
+    # is a multiple of 256, so along that axis the noise is the one at lattice coordinate 0.
+    # Before: ~1e116 at 1e19 (an out-of-range float -> int64 conversion) and NaN at 1e300.
+    yz = np.array([[0.3, 0.7], [4.6, -2.2], [-11.25, 0.5]])
+    for axis in range(3):
+        pts = np.insert(yz, axis, far, axis=1)
+        ref = np.insert(yz, axis, 0.0, axis=1)
+        np.testing.assert_array_equal(perlin3(pts), perlin3(ref))
+        v, g = perlin3_gradient(pts)
+        assert np.isfinite(g).all() and np.abs(v).max() <= 1.0
+        _, _, h = perlin3_hessian(pts)
+        assert np.isfinite(h).all()
+        # one octave, no drift: the curl there is the curl at the wrapped point, bit for bit
+        np.testing.assert_array_equal(curl_noise(pts, octaves=1, seed=4),
+                                      curl_noise(ref, octaves=1, seed=4))
+    pts = np.array([[far, far, far], [far, -0.4, 3.3], [2.5, far, -far]])
+    octaves, gain = 6, 0.5
+    bound = sum(gain**k for k in range(octaves))
+    for fractal in (fbm3(pts, octaves=octaves, gain=gain, time=2.0, time_scale=0.7),
+                    fbm3(pts, octaves=octaves, gain=gain, frequency=3.0, gradient=True)[1],
+                    turbulence3(pts, octaves=octaves, gain=gain)):
+        assert np.isfinite(fractal).all()
+    assert np.abs(fbm3(pts, octaves=octaves, gain=gain)).max() <= bound
+    assert 0.0 <= turbulence3(pts, octaves=octaves, gain=gain).min()
+    assert turbulence3(pts, octaves=octaves, gain=gain).max() <= bound
+    vel = curl_noise(pts, 1.5, amplitude=2.0, octaves=4, time_scale=0.3)
+    # |curl| <= amplitude * sum_k (gain lacunarity)^k * 2 max|grad N|, max|grad N| < 3 (loose)
+    assert np.isfinite(vel).all() and np.abs(vel).max() <= 2.0 * 4 * 2 * 3.0
+    # coordinates that overflow to inf inside (frequency * x) wrap the same way
+    assert np.isfinite(fbm3(np.array([[1e308, 0.2, 0.3]]), frequency=10.0, octaves=4)).all()
+
+
+def test_non_finite_inputs_raise_naming_the_parameter():
+    pts = POINTS[:4]
+    for bad in (math.nan, math.inf, -math.inf):
+        with pytest.raises(ValueError, match="points"):
+            perlin3(np.array([[0.0, bad, 1.0]]))
+        with pytest.raises(ValueError, match="points"):
+            fbm3(np.array([[bad, 0.0, 1.0]]))
+        with pytest.raises(ValueError, match="points"):
+            curl_noise(np.array([[0.0, 0.0, bad]]))
+        with pytest.raises(ValueError, match="z"):
+            perlin3(0.0, 1.0, bad)
+        with pytest.raises(ValueError, match="time"):
+            fbm3(pts, time=bad, time_scale=1.0)
+        with pytest.raises(ValueError, match="time_scale"):
+            fbm3(pts, time_scale=bad)
+        with pytest.raises(ValueError, match="t "):
+            curl_noise(pts, bad)
+        with pytest.raises(ValueError, match="frequency"):
+            perlin3(pts, frequency=abs(bad))
+        with pytest.raises(ValueError, match="amplitude"):
+            CurlNoise(amplitude=abs(bad))
+    with pytest.raises(ValueError, match="lacunarity"):
+        fbm3(pts, frequency=1e300, lacunarity=16.0, octaves=16)  # last octave overflows

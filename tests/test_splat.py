@@ -196,3 +196,86 @@ def test_merge_and_mesh_stats_on_a_cube():
     assert st.area == pytest.approx(6.0) and abs(st.volume) == pytest.approx(1.0)
     open_stats = mesh_stats(p, t[:-1])
     assert not open_stats.closed and not open_stats.manifold
+
+
+# --- far-apart points and the memory message (issue 16, item 7) -----------------------------
+def _dyadic_cluster():
+    """A jittered 4^3 cluster on dyadic coordinates (translations by powers of 2 are exact)."""
+    rng = np.random.default_rng(3)
+    g = np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    return (g + np.round(rng.uniform(-8, 8, g.shape)) / 64) * 2.0**-6  # spacing 1/64 m
+
+
+def _blocks_by_cluster(grid, split):
+    """(coords, data) of the evaluated blocks below / above ``split`` blocks along x, sorted."""
+    coords = grid.block_coords
+    out = []
+    for mask in (coords[:, 0] < split, coords[:, 0] >= split):
+        c, d = coords[mask], grid.data[mask]
+        order = np.lexsort(c.T[::-1])
+        out.append((c[order], d[order]))
+    return out
+
+
+def test_far_apart_clusters_are_both_splatted():
+    # Before: splat_sparse([[0,0,0],[1e5,0,0]], 0.01, 0.005) splatted one particle (block
+    # coordinates wrapped past 2^20). Inside the key range two clusters 32 km apart are splatted
+    # in full (the same field, bit for bit, as the cluster alone, translated); only their own
+    # blocks are stored.
+    cell = 2.0**-7
+    a = _dyadic_cluster()
+    shift = 2.0**15  # 32768 m = 2^19 blocks of 8 voxels
+    both = splat_sparse(np.concatenate([a, a + [shift, 0.0, 0.0]]), 0.01, cell)
+    alone = splat_sparse(a, 0.01, cell)
+    near, far = _blocks_by_cluster(both, 2**18)
+    ref = _blocks_by_cluster(alone, 2**18)[0]
+    assert near[0].shape[0] == ref[0].shape[0] > 0
+    np.testing.assert_array_equal(near[0], ref[0])
+    np.testing.assert_array_equal(far[0], ref[0] + [2**19, 0, 0])
+    np.testing.assert_array_equal(near[1], ref[1])
+    np.testing.assert_array_equal(far[1], ref[1])
+    assert near[1].min() < 0 and far[1].min() < 0  # each cluster's inside (peak of the field)
+    assert both.keys.size == 2 * alone.keys.size
+    # negative coordinates and the values at surface vertices, far away too
+    both = splat_sparse(np.concatenate([a, a - [0.0, 0.0, shift]]), 0.01, cell)
+    assert (both.block_coords[:, 2] < -2**18).sum() == alone.keys.size
+    v = interpolate_attributes(np.concatenate([a, a + [shift, 0, 0], [[1e300, 0, 0]]]),
+                               np.concatenate([a, a + [shift, 0, 0]]), 0.01,
+                               np.r_[np.ones(len(a)), 2 * np.ones(len(a))], cell_size=cell)
+    np.testing.assert_allclose(v, np.r_[np.ones(len(a)), 2 * np.ones(len(a)), 0.0])
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("spread", [1e5, 1e12, 1e20, 1e300])
+@pytest.mark.parametrize("splat", [splat_sparse, splat_dense])
+def test_points_beyond_the_block_keys_are_refused_up_front(splat, spread):
+    # 1e5 m at 0.04 m blocks is 2.5 million blocks: more than the 2^21 that 21-bit block
+    # coordinates hold, whatever the origin
+    with pytest.raises(ValueError, match=r"positions lie between 0 and .* along x: .* blocks "
+                                         r".*more than the .* block index holds.*split the cloud"):
+        splat([[0, 0, 0], [spread, 0, 0]], 0.01, 0.005)
+    with pytest.raises(ValueError, match="positions .* along y"):
+        splat([[0, 0, 0], [0, -spread, 0]], 0.01, 0.005)
+    # a small cloud far from the origin: fits if translated, and the message says so
+    with pytest.raises(ValueError, match=r"along z.*translate the points nearer the origin"):
+        splat(_cloud(20) + [0, 0, 5e4], 0.01, 0.005)
+    with pytest.raises(ValueError, match="positions"):
+        interpolate_attributes(np.zeros((1, 3)), [[0, 0, 0], [spread, 0, 0]], 0.01, [1.0, 2.0],
+                               cell_size=0.005)
+
+
+def test_budget_message_gives_sizes_in_sensible_units():
+    from filters.sparse_grid import check_budget, format_bytes
+
+    # Before: "needs 0.0 MiB, above max_bytes = 0.0 MiB"
+    with pytest.raises(GridTooLargeError) as info:
+        splat_sparse(_cloud(10), 0.01, 0.005, max_bytes=100)
+    msg = str(info.value)
+    assert "0.0 MiB" not in msg and "needs 960 bytes, above max_bytes = 100 bytes" in msg
+    assert [format_bytes(n) for n in (0, 1, 1023, 1536, 3 * 2**20 + 2**19, 2**32)] == [
+        "0 bytes", "1 byte", "1023 bytes", "1.5 KiB", "3.5 MiB", "4 GiB"]
+    with pytest.raises(GridTooLargeError, match=r"needs 4 GiB \(4,294,967,297 bytes\), above "
+                                                r"max_bytes = 4 GiB \(4,294,967,296 bytes\)"):
+        check_budget(2**32 + 1, 2**32, "a grid")
+    with pytest.raises(GridTooLargeError, match=r"needs [1-9][0-9.]* (KiB|MiB|GiB)"):
+        splat_sparse(_cloud(), 0.01, 0.0005, max_bytes=10_000)
