@@ -1,7 +1,12 @@
-"""Weakly compressible SPH liquid (Becker & Teschner 2007) in Numba.
+"""SPH liquid in Numba: weakly compressible (Becker & Teschner 2007) or divergence-free (DFSPH).
 
-The method
-----------
+``SPHLiquid(..., solver="wcsph")`` (the default) is described below.  ``solver="dfsph"`` replaces
+the equation of state by the two implicit pressure solves of Bender & Koschier (2015, 2017) in
+:mod:`filters.dfsph` (same neighbour lists, boundary particles, viscosity, surface tension,
+external fields, state and checkpoints; steps from the velocity CFL condition only).
+
+The method (WCSPH)
+------------------
 * Density by summation, ``rho_i = sum_j m W_ij + sum_b rho0 V_b W_ib`` (fluid and boundary).
 * Tait equation of state (Becker & Teschner 2007, after Monaghan 1994)
   ``p = B ((rho / rho0)^gamma - 1)``, ``B = rho0 c^2 / gamma``, ``gamma = 7``, with the density
@@ -46,6 +51,7 @@ import numpy as np
 from numba import njit, prange
 
 from .boundary import BoundaryParticles, lattice_volume
+from .dfsph import DFSPHSolver
 from .kernels import cohesion_c, kernel_dw, kernel_id, kernel_w
 from .neighbors import _counting_sort, _grid_keys, bounds, grid_query_padded
 from .simulation import OutputSpec, Simulation, SimulationUnstableError, State, Frame
@@ -59,6 +65,8 @@ def default_support_factor(kernel: str) -> float:
     return 2.5 if kernel == "wendland" else 2.0
 
 _CELL_PAD = 1.0 + 1e-9
+_DFSPH_MAX_DT = 0.005  # s, default largest DFSPH step
+_DFSPH_MIN_DT = 1e-5  # s, smallest DFSPH step (a faster fluid is a blow-up here)
 _REACH = 2  # grid cells per support radius (see filters.neighbors)
 
 
@@ -106,6 +114,12 @@ class SPHModel:
         How boundary particles get a pressure.
     boundary_points, boundary_volumes : read-only arrays
         Boundary particles sorted by cell, (M, 3) m and (M,) m^3.
+    solver : {"wcsph", "dfsph"}
+        Pressure solver.
+    max_density_error, max_divergence_error : float
+        DFSPH tolerances (fractions of ``rho0``; the second per step).
+    max_iterations : int
+        Most iterations of each DFSPH solve.
     """
 
     spacing: float
@@ -128,6 +142,10 @@ class SPHModel:
     boundary_pressure: str
     boundary_points: np.ndarray
     boundary_volumes: np.ndarray
+    solver: str = "wcsph"
+    max_density_error: float = 1e-3
+    max_divergence_error: float = 1e-2
+    max_iterations: int = 100
 
 
 # --------------------------------------------------------------------------------------------
@@ -424,7 +442,8 @@ def _as_field(external):
 
 
 class SPHLiquid(Simulation):
-    """Weakly compressible SPH liquid (Becker & Teschner 2007) with boundary particles.
+    """SPH liquid with boundary particles: WCSPH (Becker & Teschner 2007) or DFSPH (Bender &
+    Koschier 2015, 2017).
 
     Parameters
     ----------
@@ -463,11 +482,13 @@ class SPHLiquid(Simulation):
         Extra acceleration field ``field(positions, velocities, time) -> (N, 3)`` (m/s^2), or an
         object whose ``acceleration`` method has that signature.
     cfl : float
-        Courant number in (0, 1], default 0.4.
-    max_dt : float
-        Largest step (s), default 1/240.
+        Courant number in (0, 1], default 0.4.  DFSPH: ``dt = cfl * spacing / max |v|``.
+    max_dt : float, optional
+        Largest step (s) in (0, 1]; default 1/240 (WCSPH) or 0.005 (DFSPH).
     density_error_limit : float
-        Largest tolerated relative compression in (0, 1], default 0.1.
+        Largest tolerated relative compression in (0, 1], default 0.1.  WCSPH: of any particle;
+        DFSPH: of the mean over particles (what DFSPH controls; single particles squeezed at an
+        impact may exceed it briefly), and of the mean error its density solver reaches.
     domain : tuple of two sequences of 3 float, optional
         ``(lower, upper)`` box (m) particles must stay inside; default: the boundary particles'
         bounding box when there is a boundary, otherwise no check.
@@ -490,6 +511,20 @@ class SPHLiquid(Simulation):
         Numba threads to use while stepping.  Default: 1 below 20,000 particles (on a busy
         machine, waking threads for a dozen short parallel loops per step costs more than it
         saves), otherwise all of Numba's threads.
+    solver : {"wcsph", "dfsph"}
+        ``"wcsph"`` (default): Tait equation of state, acoustic CFL step.  ``"dfsph"``:
+        divergence-free SPH (Bender & Koschier 2017, :mod:`filters.dfsph`), a divergence solve
+        and a constant-density solve per step, steps from the velocity CFL only
+        (``dt = cfl * spacing / max |v|``, between 1e-5 s and ``max_dt``).  ``speed_of_sound``
+        then only scales the artificial viscosity (same ``viscosity``, same effect).
+    max_density_error : float
+        DFSPH: tolerance of the mean predicted compression ``mean max(rho / rho0 - 1, 0)`` in
+        [1e-6, 0.1], default 0.001 (0.1 %).
+    max_divergence_error : float
+        DFSPH: tolerance of the mean compression rate over one step, ``dt mean max(D rho / D t,
+        0) / rho0``, in [1e-6, 1], default 0.01 (1 %).
+    max_iterations : int
+        DFSPH: most iterations of each solve in [2, 10000], default 100 (at least 2 are done).
 
     Raises
     ------
@@ -497,26 +532,41 @@ class SPHLiquid(Simulation):
         For invalid parameters, before any work.
     SimulationUnstableError
         While stepping: non-finite positions or velocities, a particle outside ``domain``, or a
-        compression beyond ``density_error_limit``; with the simulated time and the quantity.
+        compression beyond ``density_error_limit`` (DFSPH: mean compression, or a density
+        solve ending above it); with the simulated time and the quantity.
 
     Notes
     -----
     The state holds ``positions``, ``velocities`` and the extras ``id`` (int64, the particle's
     original index; particles are re-ordered by grid cell at every list rebuild), ``anchor``
     (positions at the last rebuild, which decide the next one) and ``kinematics``
-    (``[max |v|, max |a|]`` of the last step, which the adaptive step uses), so a restored
-    checkpoint continues bit-identically (tested).
+    (``[max |v|, max |a|]`` of the last step, which the adaptive step uses; DFSPH adds the last
+    step), and for DFSPH the warm starts ``kappa`` and ``kappa_v`` (see :mod:`filters.dfsph`),
+    so a restored checkpoint continues bit-identically (tested).  After each DFSPH step,
+    :attr:`last_density_iterations`, :attr:`last_divergence_iterations`,
+    :attr:`last_density_error` and :attr:`last_divergence_error` describe the two solves.
     """
 
-    instability_hint = ("reduce the time step (cfl, max_dt), increase speed_of_sound or "
-                        "viscosity, or check that the fluid starts inside the walls")
+    _HINTS = {
+        "wcsph": ("reduce the time step (cfl, max_dt), increase speed_of_sound or viscosity, or "
+                  "check that the fluid starts inside the walls"),
+        "dfsph": ("reduce the time step (cfl, max_dt), increase max_iterations or lower "
+                  "max_density_error, or check that the fluid starts inside the walls"),
+    }
+
+    @property
+    def instability_hint(self) -> str:
+        """What the caller can change when the simulation diverges (only settable parameters)."""
+        return self._HINTS[self.model.solver]
 
     def __init__(self, positions, velocities=None, *, spacing, boundary=None,
                  rest_density=1000.0, kernel="cubic", support_factor=None, speed_of_sound=None,
                  gamma=7.0, viscosity=0.05, boundary_viscosity=None, xsph=0.0,
                  surface_tension=0.0, gravity=(0.0, 0.0, -9.81), external=None, cfl=0.4,
-                 max_dt=1.0 / 240.0, density_error_limit=0.1, domain=None, container=None,
-                 boundary_pressure="adami", skin=0.2, threads=None):
+                 max_dt=None, density_error_limit=0.1, domain=None, container=None,
+                 boundary_pressure="adami", skin=0.2, threads=None, solver="wcsph",
+                 max_density_error=1e-3, max_divergence_error=1e-2, max_iterations=100,
+                 kinematic_viscosity=None):
         spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
         if not math.isfinite(spacing):
             raise ValueError(f"spacing must be finite (m), got {spacing!r}")
@@ -538,7 +588,18 @@ class SPHLiquid(Simulation):
         gravity = check_finite_vector("gravity", gravity, 3)
         field = _as_field(external)
         cfl = check_range("cfl", cfl, 0.0, 1.0, low_inclusive=False)
+        check_choice("solver", solver, ("wcsph", "dfsph"))
+        if max_dt is None:
+            max_dt = _DFSPH_MAX_DT if solver == "dfsph" else 1.0 / 240.0
         max_dt = check_range("max_dt", max_dt, 0.0, 1.0, low_inclusive=False)
+        max_density_error = check_range("max_density_error", max_density_error, 1e-6, 0.1)
+        max_divergence_error = check_range("max_divergence_error", max_divergence_error,
+                                           1e-6, 1.0)
+        max_iterations = check_int("max_iterations", max_iterations, 2, 10000)
+        if kinematic_viscosity is not None:
+            kinematic_viscosity = check_range("kinematic_viscosity", kinematic_viscosity, 0.0, 1.0)
+            if solver != "dfsph":
+                raise ValueError("kinematic_viscosity needs solver='dfsph' (WCSPH uses viscosity)")
         density_error_limit = check_range("density_error_limit", density_error_limit, 0.0, 1.0,
                                           low_inclusive=False)
         check_choice("boundary_pressure", boundary_pressure, ("adami", "mirror"))
@@ -608,7 +669,9 @@ class SPHLiquid(Simulation):
             gravity=tuple(gravity), cfl=cfl, max_dt=max_dt,
             density_error_limit=density_error_limit, domain=domain, container=container,
             boundary_pressure=boundary_pressure,
-            boundary_points=bx, boundary_volumes=bv,
+            boundary_points=bx, boundary_volumes=bv, solver=solver,
+            max_density_error=max_density_error, max_divergence_error=max_divergence_error,
+            max_iterations=max_iterations,
         )
         self.max_dt = max_dt
         self._kind = kernel_id(kernel)
@@ -648,6 +711,27 @@ class SPHLiquid(Simulation):
         self._a = np.empty((n, 3))
         self._nrm = np.zeros((n, 3))
         self._capacity = 48
+        #: DFSPH: iterations and mean errors the last step's solves reached (0 for WCSPH).
+        self.last_density_iterations = 0
+        self.last_divergence_iterations = 0
+        self.last_density_error = 0.0
+        self.last_divergence_error = 0.0
+        #: DFSPH: conjugate-gradient iterations of the last implicit viscosity solve.
+        self.last_viscosity_iterations = 0
+        self._dfsph = None
+        if solver == "dfsph":
+            self._dfsph = DFSPHSolver(volume, h, self._kind, max_density_error,
+                                      max_divergence_error, max_iterations)
+            state.extra["kappa"] = np.zeros(n)
+            state.extra["kappa_v"] = np.zeros(n)
+            state.extra["kinematics"] = np.append(state.extra["kinematics"], max_dt)
+            self._zero_p = np.zeros(n)
+            if kinematic_viscosity is None:  # Monaghan's nu = alpha c h' / (2 (d + 2))
+                self._nu = (viscosity * speed_of_sound * 0.5 * h / 10.0,
+                            boundary_viscosity * speed_of_sound * 0.5 * h / 10.0)
+            else:
+                self._nu = (kinematic_viscosity, kinematic_viscosity)
+            self._bmirror = np.full(bx.shape[0], -1.0)
         if threads is None:
             threads = 1 if n < 20_000 else numba.config.NUMBA_NUM_THREADS
         self.threads = threads
@@ -675,9 +759,15 @@ class SPHLiquid(Simulation):
             "pressure": self._p.copy(), "id": s.extra["id"].copy()})
 
     def max_step(self) -> float:
-        """Adaptive step (s): CFL with viscous term and force condition, at most ``max_dt``."""
+        """Adaptive step (s).  WCSPH: CFL with viscous term and force condition; DFSPH: the
+        velocity CFL ``cfl * spacing / max |v|``, at least 1e-5 s; at most ``max_dt``."""
         m = self.model
-        vmax, amax = (float(v) for v in self.state.extra["kinematics"])
+        if m.solver == "dfsph":
+            vmax = float(self.state.extra["kinematics"][0])
+            if vmax * self.max_dt > m.cfl * m.spacing:
+                return max(m.cfl * m.spacing / vmax, _DFSPH_MIN_DT)
+            return self.max_dt
+        vmax, amax = (float(v) for v in self.state.extra["kinematics"][:2])
         hs = 0.5 * m.support
         dt = m.cfl * hs / (m.speed_of_sound * (1.0 + 0.6 * m.viscosity) + vmax)
         if amax > 0.0:
@@ -732,6 +822,9 @@ class SPHLiquid(Simulation):
             s.positions = xo
             s.velocities = vo
             s.extra["id"] = io
+            for name in ("kappa", "kappa_v"):  # DFSPH warm starts follow their particles
+                if name in s.extra:
+                    s.extra[name] = s.extra[name][order]
             sx = xo
             sorted_ids = np.arange(x.shape[0], dtype=np.int32)
         else:
@@ -759,7 +852,16 @@ class SPHLiquid(Simulation):
         x = self.state.positions
         _density(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt, self._bpsi,
                  m.mass, m.support, self._kind, self._rho)
-        err = _tait(self._rho, m.rest_density, self._stiffness, m.gamma, self._p)
+        if m.solver == "dfsph":
+            # Pressure of the last step's two solves: p = (pi + pi_v) rho^2 / rho0, with
+            # pi = kappa / dt^2 and pi_v = kappa_v / dt (see filters.dfsph).
+            ex = self.state.extra
+            dt = float(ex["kinematics"][2])
+            self._p[:] = ((ex["kappa"] / (dt * dt) + ex["kappa_v"] / dt)
+                          * self._rho ** 2 / m.rest_density)
+            err = max(float((self._rho / m.rest_density - 1.0).max()), 0.0)
+        else:
+            err = _tait(self._rho, m.rest_density, self._stiffness, m.gamma, self._p)
         self.density_error = float(err)
         self.mean_density_error = float(
             np.maximum(self._rho / m.rest_density - 1.0, 0.0).mean())
@@ -774,6 +876,9 @@ class SPHLiquid(Simulation):
             numba.set_num_threads(previous)
 
     def _step_impl(self, dt: float) -> None:
+        if self.model.solver == "dfsph":
+            self._step_dfsph(dt)
+            return
         s = self.state
         m = self.model
         self._ensure_lists()
@@ -809,6 +914,77 @@ class SPHLiquid(Simulation):
         if m.container is not None:
             self.contained += int(_contain(x, s.velocities, self._clo, self._chi))
         s.extra["kinematics"] = np.array([vmax, amax])
+        if not math.isfinite(vmax):
+            raise SimulationUnstableError(s.time + dt, "non-finite velocities", self.instability_hint)
+        if m.domain is not None:
+            bad = _outside(x, self._dlo, self._dhi)
+            if bad >= 0:
+                raise SimulationUnstableError(
+                    s.time + dt, f"particle {int(s.extra['id'][bad])} left the domain "
+                    f"at {x[bad].tolist()}", self.instability_hint)
+
+    def _step_dfsph(self, dt: float) -> None:
+        """One DFSPH step (Bender & Koschier 2017, Alg. 1): neighbourhoods, densities and
+        ``alpha_i``; divergence solve; non-pressure accelerations; density solve; drift."""
+        s = self.state
+        m = self.model
+        solver = self._dfsph
+        self._ensure_lists()
+        self._evaluate_density()
+        mean_err = self.mean_density_error
+        if not math.isfinite(mean_err) or mean_err > m.density_error_limit:
+            raise SimulationUnstableError(
+                s.time, f"mean density error {mean_err:.3g} > density_error_limit "
+                f"{m.density_error_limit:g}", self.instability_hint)
+        x = s.positions
+        v = s.velocities
+        ex = s.extra
+        for name in ("kappa", "kappa_v"):
+            if ex.get(name) is None or ex[name].shape != (s.n_points,):
+                ex[name] = np.zeros(s.n_points)  # e.g. a state written by a WCSPH run
+        solver.prepare(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt,
+                       m.boundary_volumes)
+        solver.divergence_solve(v, dt, ex["kappa_v"])
+        g = self._gravity
+        if m.surface_tension > 0.0:
+            _normals(x, self._rho, self._tab, self._cnt, m.mass, m.support, self._kind, self._nrm)
+            amax = _accelerations(x, v, self._rho, self._zero_p, self._tab, self._cnt,
+                                  m.boundary_points, self._btab, self._bcnt, self._bpsi,
+                                  self._bmirror, m.mass, m.support, self._kind, 0.0, 0.0,
+                                  m.speed_of_sound, m.rest_density, m.surface_tension,
+                                  self._nrm, g, self._a)
+        else:
+            self._a[:] = g
+            amax = float(np.linalg.norm(g))
+        if self._field is not None:
+            extra = np.asarray(self._field(x, v, s.time), dtype=np.float64)
+            if extra.shape != x.shape:
+                raise ValueError(f"external field returned shape {extra.shape}, expected {x.shape}")
+            self._a += extra
+            amax = float(np.sqrt((self._a ** 2).sum(axis=1)).max())
+        solver.kick(v, self._a, dt)
+        self.last_viscosity_iterations = solver.viscosity_solve(v, x, dt, *self._nu)
+        solver.density_solve(v, self._rho, m.rest_density, dt, ex["kappa"])
+        self.last_density_iterations = solver.density_iterations
+        self.last_divergence_iterations = solver.divergence_iterations
+        self.last_density_error = solver.density_error
+        self.last_divergence_error = solver.divergence_error
+        err = solver.density_error
+        if not math.isfinite(err) or (solver.density_iterations >= m.max_iterations
+                                      and err > m.density_error_limit):
+            raise SimulationUnstableError(
+                s.time, f"DFSPH density solve reached a mean density error {err:.3g} > "
+                f"density_error_limit {m.density_error_limit:g} in {m.max_iterations} "
+                f"iterations", self.instability_hint)
+        vmax = solver.drift(x, v, dt)
+        if m.xsph > 0.0:
+            out = np.empty_like(v)
+            _xsph(v, self._rho, x, self._tab, self._cnt, m.mass, m.support, self._kind, m.xsph, out)
+            s.velocities = out
+            vmax = float(np.sqrt((out ** 2).sum(axis=1)).max())
+        if m.container is not None:
+            self.contained += int(_contain(x, s.velocities, self._clo, self._chi))
+        ex["kinematics"] = np.array([vmax, amax, dt])
         if not math.isfinite(vmax):
             raise SimulationUnstableError(s.time + dt, "non-finite velocities", self.instability_hint)
         if m.domain is not None:

@@ -1,4 +1,5 @@
-"""``dam_break``: a water column collapsing in a closed tank (WCSPH, Becker & Teschner 2007).
+"""``dam_break``: a water column collapsing in a closed tank (DFSPH by default, Bender & Koschier 2017;
+or WCSPH, Becker & Teschner 2007).
 
 The classic experiment of Martin & Moyce (1952): a column of width ``a`` and height ``2 a`` stands
 against the left wall of a tank ``>= 4 a`` long; the front runs along the floor, hits the far
@@ -9,6 +10,7 @@ wall, climbs it and falls back as a plunging wave.  The particle series carries 
 from __future__ import annotations
 
 from filters.sph_scenarios import dam_break_liquid
+from filters.validation import check_choice
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
@@ -21,7 +23,7 @@ SCENE_DURATION = 2.0
 def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length: float = 0.4,
           depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.01,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
-          cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
+          solver: str = "dfsph", max_density_error: float = 0.001, cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
     """Build the dam-break flow (about 2,000 fluid particles with the defaults).
 
@@ -46,6 +48,11 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         XSPH velocity smoothing in [0, 1).
     surface_tension : float
         Akinci et al. (2013) surface tension coefficient, >= 0.
+    solver : {"dfsph", "wcsph"}
+        Pressure solver: divergence-free SPH (default; implicit pressure, steps from the
+        velocity CFL, implicit viscosity) or weakly compressible SPH (Tait equation of state).
+    max_density_error : float
+        DFSPH tolerance of the mean compression, in [1e-6, 0.1] (0.001 = 0.1 %).
     cfl : float
         Courant number of the adaptive time step, in (0, 1].
     surface : bool
@@ -60,10 +67,12 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         time: flat water up to 2x flatter (as flat on one SPH pool), small drops 15-21 %
         larger (see ``scenes/liquid_surface.py``); ``false`` for isotropic kernels.
     """
+    check_choice("solver", solver, ("dfsph", "wcsph"))
     simulation = dam_break_liquid(
         column_width=column_width, column_height=column_height, tank_length=tank_length,
         depth=depth, tank_height=tank_height, spacing=spacing, viscosity=viscosity, xsph=xsph,
-        surface_tension=surface_tension, cfl=cfl)
+        surface_tension=surface_tension, solver=solver,
+        **({"max_density_error": max_density_error} if solver == "dfsph" else {}), cfl=cfl)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
     if surface:
         add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
@@ -73,5 +82,5 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
     return flow
 
 
-SCENE = Scene("dam_break", build, "a water column collapsing in a closed tank (WCSPH liquid)",
+SCENE = Scene("dam_break", build, "a water column collapsing in a closed tank (DFSPH liquid)",
               fps=SCENE_FPS, duration=SCENE_DURATION)

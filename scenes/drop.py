@@ -1,4 +1,5 @@
-"""``drop``: a sphere of liquid falling into a resting pool (WCSPH, Becker & Teschner 2007).
+"""``drop``: a sphere of liquid falling into a resting pool (DFSPH by default, Bender & Koschier 2017;
+or WCSPH, Becker & Teschner 2007).
 
 The particle series carries ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure`` (Pa) and
 ``id`` (the pool's particles first, then the drop's).
@@ -7,6 +8,7 @@ The particle series carries ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure
 from __future__ import annotations
 
 from filters.sph_scenarios import drop_liquid
+from filters.validation import check_choice
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
@@ -19,7 +21,8 @@ SCENE_DURATION = 1.5
 def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: float = 0.3,
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
-          surface_tension: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
+          surface_tension: float = 0.0, solver: str = "dfsph",
+          max_density_error: float = 0.001, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
     """Build the drop flow (about 2,500 fluid particles with the defaults).
 
@@ -45,6 +48,11 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         Monaghan's artificial viscosity ``alpha`` in [0, 1].
     surface_tension : float
         Akinci et al. (2013) surface tension coefficient, >= 0.
+    solver : {"dfsph", "wcsph"}
+        Pressure solver: divergence-free SPH (default; implicit pressure, steps from the
+        velocity CFL, implicit viscosity) or weakly compressible SPH (Tait equation of state).
+    max_density_error : float
+        DFSPH tolerance of the mean compression, in [1e-6, 0.1] (0.001 = 0.1 %).
     surface : bool
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
@@ -57,11 +65,13 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         time: flat water up to 2x flatter (as flat on one SPH pool), small drops 15-21 %
         larger (see ``scenes/liquid_surface.py``); ``false`` for isotropic kernels.
     """
+    check_choice("solver", solver, ("dfsph", "wcsph"))
     simulation = drop_liquid(
         tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,
         pool_depth=pool_depth, drop_radius=drop_radius, drop_height=drop_height,
         drop_speed=drop_speed, spacing=spacing, viscosity=viscosity,
-        surface_tension=surface_tension)
+        surface_tension=surface_tension, solver=solver,
+        **({"max_density_error": max_density_error} if solver == "dfsph" else {}))
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
     if surface:
         add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
@@ -71,5 +81,5 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
     return flow
 
 
-SCENE = Scene("drop", build, "a sphere of liquid falling into a resting pool (WCSPH liquid)",
+SCENE = Scene("drop", build, "a sphere of liquid falling into a resting pool (DFSPH liquid)",
               fps=SCENE_FPS, duration=SCENE_DURATION)
