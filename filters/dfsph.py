@@ -34,16 +34,24 @@ and ``(A pi)_i = scale (sum_j V_j (a_i - a_j) . grad W_ij + a_i . sum_b V_b grad
 change of the density ratio that the current pressures cause.  Clamping ``pi >= 0`` keeps the
 free surface free of tension.  The solvers stop when the **average** predicted compression
 ``mean_i max(-(s_i - (A pi)_i), 0)`` (for divergence: per step, i.e. ``dt mean max(D rho / D t,
-0) / rho0``) is below the tolerance, after at least ``min_iterations``.  This is the
-"pressure-as-unknown" form of the DFSPH iteration that SPlisHSPlasH 2.x uses; it is equivalent
-to the paper's stiffness-increment form but keeps a non-negative total pressure, which is what the
-frames report.
+0) / rho0``) is below the tolerance, after at least two iterations (one for divergence, as in
+SPlisHSPlasH).  This is the "pressure-as-unknown" form of the DFSPH iteration that SPlisHSPlasH
+2.x uses; it is equivalent to the paper's stiffness-increment form but keeps a non-negative total
+pressure, which is what the frames report.
 
 **Warm start** (Bender & Koschier 2017, Sec. 4.4): each solve starts from half of the previous
-step's converged pressure, stored time-step independent as ``kappa = pi dt^2`` (density) and
-``kappa_v = pi_v dt`` (divergence) in the simulation state, so a checkpoint resumes bit for bit.
-The warm start is capped (``kappa <= 2.5e-4``, ``kappa_v <= 0.5``, the values SPlisHSPlasH uses)
-and skipped where the particle is not compressed.
+step's converged pressure (IISPH's and SPlisHSPlasH's choice; starting from all of it converges
+in half the iterations but lets a resting column slosh, because the pressure then lags the
+motion).  The divergence solve stores ``kappa_v = pi_v dt`` (its pressure scales with 1/dt), the
+density solve stores ``pi`` itself: SPlisHSPlasH stores ``pi dt^2``, which rescales the warm
+start by ``(dt_old / dt_new)^2`` whenever the step changes, while the pressure that holds a
+resting fluid up does not depend on the step.  Both live in the simulation state, so a
+checkpoint resumes bit for bit.  The warm starts are capped (``pi dt^2 <= 2.5e-4``, ``kappa_v <=
+0.5``, SPlisHSPlasH's values) and skipped where the particle is not compressed.
+
+One fused pass per step (:func:`_neighbourhood`) finds the neighbours of the cell-sorted
+particles afresh (a DFSPH step moves particles farther than a Verlet skin could cover) and
+computes densities, ``alpha_i`` and the kernel gradients, stored as one float32 scalar per pair.
 
 All loops are gathers over the particle's own fixed-order neighbour list inside ``prange`` (no
 scatter, no atomics) and every reduction is a per-particle array summed serially, so results are
@@ -57,12 +65,12 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .kernels import kernel_dw
+from .kernels import kernel_w, kernel_w_dw
 
 __all__ = ["DFSPHSolver", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
            "DFSPH_MIN_NEIGHBOURS"]
 
-#: Cap of the density solver's warm start ``kappa = pi dt^2`` (dimensionless).
+#: Cap of the density solver's warm start, as ``pi dt^2`` (dimensionless).
 DFSPH_WARM_START_CAP = 2.5e-4
 #: Cap of the divergence solver's warm start ``kappa_v = pi_v dt`` (m^2/s).
 DFSPH_WARM_START_CAP_V = 0.5
@@ -75,132 +83,263 @@ _OMEGA = 0.5
 # --------------------------------------------------------------------------------------------
 # Numba kernels.
 # --------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always", error_model="numpy")
+def _cells(q, origin, inv_cell, dim):
+    """First and last cell index (clamped) within two cells of coordinate ``q``."""
+    f = math.floor((q - origin) * inv_cell)
+    lo = min(max(f - 2.0, 0.0), float(dim))
+    hi = max(min(f + 2.0, dim - 1.0), -1.0)
+    return int(lo), int(hi)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _gap(q, lo_edge, hi_edge):
+    if q < lo_edge:
+        return lo_edge - q
+    if q > hi_edge:
+        return q - hi_edge
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def boundary_reach_mask(xb, origin, cell, dims):
+    """Cells of a grid (edge ``cell``) that have a boundary particle within two cells per axis:
+    a fluid particle whose cell is not marked has no boundary neighbour within ``2 cell``."""
+    mask = np.zeros(dims[0] * dims[1] * dims[2], dtype=np.bool_)
+    inv = 1.0 / cell
+    for b in range(xb.shape[0]):
+        x0, x1 = _cells(xb[b, 0], origin[0], inv, dims[0])
+        y0, y1 = _cells(xb[b, 1], origin[1], inv, dims[1])
+        z0, z1 = _cells(xb[b, 2], origin[2], inv, dims[2])
+        for iz in range(z0, z1 + 1):
+            for iy in range(y0, y1 + 1):
+                row = (iz * dims[1] + iy) * dims[0]
+                for ix in range(x0, x1 + 1):
+                    mask[row + ix] = True
+    return mask
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _home(q, origin, inv_cell, dim):
+    return min(max(int(math.floor((q - origin) * inv_cell)), 0), dim - 1)
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def _prepare(x, tab, cnt, xb, btab, bcnt, bvol, vol, h, kind, ntab, ncnt, grad, gb, factor,
-             nnb, bvis):
-    """Compact the Verlet lists to pairs within ``h`` and precompute per pair ``V_j grad W_ij``
-    (1/m), per particle ``gb_i = sum_b V_b grad W_ib`` (1/m), the factor ``alpha_i`` (m^2),
-    the number of neighbours within ``h`` (fluid plus boundary) and the boundary's viscosity
-    block ``sum_b V_b (dW/dr / r) x_ib x_ib^T / (r^2 + 0.01 (h/2)^2)`` (1/m^3, xx yy zz xy xz
-    yz)."""
+def _neighbourhood(x, start, origin, cell, dims, xb, bstart, borigin, bcell, bdims, bmask, bvol,
+                   bpsi, vol, mass, h, kind, ntab, ncnt, fw, gsum, factor, nnb, rho, fsum, bvis):
+    """One fused pass per step: neighbours within ``h``, kernel gradients, density, ``alpha_i``.
+
+    ``x`` must be sorted by the grid of cell ``cell`` (``h / 2`` padded) whose cell ranges are
+    ``start`` (a counting sort of ``x`` itself); ``xb`` likewise for ``bstart``, and ``bmask``
+    (:func:`boundary_reach_mask`) marks the boundary cells worth scanning.  Each particle scans
+    the 5 x 5 rows of 5 consecutive cells around it (rows farther than ``h`` skipped), so its
+    neighbours come in a fixed order that depends only on the positions: results are
+    bit-identical for any thread count.  The scan only collects candidates (branch-free: every
+    candidate is written, the count advances on hits); the kernels are evaluated on the hits.
+
+    Writes, per particle ``i``: ``ntab[i, :ncnt[i]]`` the fluid neighbours ``j != i`` with
+    ``r < h``; ``fw[i, k] = V_j W'(r_ij) / r_ij`` (float32, 1/m^2), so that ``V_j grad W_ij =
+    fw[i, k] (x_i - x_j)`` (storing this scalar instead of the gradient vector halves what
+    every solver iteration reads; ``fw`` is symmetric, so pair forces stay antisymmetric);
+    ``gsum_i = sum_j V_j grad W_ij +
+    sum_b V_b grad W_ib`` (1/m); ``factor_i = alpha_i`` (m^2, Bender & Koschier 2017, eq. 11,
+    with rest volumes); ``nnb_i`` the number of neighbours (fluid and boundary); ``rho_i``
+    (kg/m^3, by summation); ``fsum_i = sum_j fw_ij`` (1/m^2), which gives the fluid part of
+    the implicit viscosity's diagonal; and the boundary's viscosity block ``bvis_i = sum_b V_b
+    (W'(r) / r) x_ib x_ib^T / (r^2 + 0.01 h'^2)`` (1/m^3, xx yy zz xy xz yz).  ``ntab`` has one
+    spare column.  Returns the largest neighbour count: above ``ntab.shape[1] - 1`` the tables
+    are truncated and the call must be repeated with wider ones.
+    """
+    n = x.shape[0]
+    cap = ntab.shape[1] - 1
     h2 = h * h
+    margin = h2 * (1.0 + 1e-6)
     eps = 0.01 * 0.25 * h2
-    for i in prange(x.shape[0]):
-        k2 = 0
+    inv = 1.0 / cell
+    binv = 1.0 / bcell
+    w0 = kernel_w(kind, 0.0, h)
+    best = np.zeros(n, dtype=np.int64)
+    nbd = xb.shape[0]
+    for i in prange(n):
+        qx = x[i, 0]
+        qy = x[i, 1]
+        qz = x[i, 2]
+        # -- collect the fluid neighbours (branch-free compaction into the row) --------------
+        c = 0
+        x0, x1 = _cells(qx, origin[0], inv, dims[0])
+        y0, y1 = _cells(qy, origin[1], inv, dims[1])
+        z0, z1 = _cells(qz, origin[2], inv, dims[2])
+        for iz in range(z0, z1 + 1):
+            gz = _gap(qz, origin[2] + iz * cell, origin[2] + (iz + 1) * cell)
+            for iy in range(y0, y1 + 1):
+                gy = _gap(qy, origin[1] + iy * cell, origin[1] + (iy + 1) * cell)
+                if gy * gy + gz * gz > margin:
+                    continue
+                row = (iz * dims[1] + iy) * dims[0]
+                for j in range(start[row + x0], start[row + x1 + 1]):
+                    dx = qx - x[j, 0]
+                    dy = qy - x[j, 1]
+                    dz = qz - x[j, 2]
+                    ntab[i, min(c, cap)] = j
+                    c += (dx * dx + dy * dy + dz * dz < h2) & (j != i)
+        best[i] = c
+        c = min(c, cap)
+        ncnt[i] = c
+        # -- kernels on the hits ---------------------------------------------------------------
+        sw = w0
         sx = 0.0
         sy = 0.0
         sz = 0.0
         sq = 0.0
-        for k in range(cnt[i]):
-            j = tab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
+        sf = 0.0
+        for k in range(c):
+            j = ntab[i, k]
+            dx = qx - x[j, 0]
+            dy = qy - x[j, 1]
+            dz = qz - x[j, 2]
             r2 = dx * dx + dy * dy + dz * dz
-            if r2 == 0.0 or r2 >= h2:
-                continue
             r = math.sqrt(r2)
-            f = vol * kernel_dw(kind, r, h) / r
+            w, dw = kernel_w_dw(kind, r, h)
+            sw += w
+            f = vol * dw / r if r > 0.0 else 0.0  # coincident: no gradient
+            f32 = np.float32(f)
+            fw[i, k] = f32
+            f = np.float64(f32)  # the sums below use what the solves will use
             gx = f * dx
             gy = f * dy
             gz = f * dz
-            ntab[i, k2] = j
-            grad[i, k2, 0] = gx
-            grad[i, k2, 1] = gy
-            grad[i, k2, 2] = gz
-            k2 += 1
             sx += gx
             sy += gy
             sz += gz
             sq += gx * gx + gy * gy + gz * gz
-        ncnt[i] = k2
+            sf += f
+        fsum[i] = sf
+        # -- boundary particles (static; only where the mask says some are within reach) -------
         bx = 0.0
         by = 0.0
         bz = 0.0
+        sb = 0.0
         nb = 0
-        for c in range(6):
-            bvis[i, c] = 0.0
-        for k in range(bcnt[i]):
-            b = btab[i, k]
-            dx = x[i, 0] - xb[b, 0]
-            dy = x[i, 1] - xb[b, 1]
-            dz = x[i, 2] - xb[b, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 == 0.0 or r2 >= h2:
-                continue
-            r = math.sqrt(r2)
-            f = bvol[b] * kernel_dw(kind, r, h) / r
-            bx += f * dx
-            by += f * dy
-            bz += f * dz
-            nb += 1
-            q = f / (r2 + eps)
-            bvis[i, 0] += q * dx * dx
-            bvis[i, 1] += q * dy * dy
-            bvis[i, 2] += q * dz * dz
-            bvis[i, 3] += q * dx * dy
-            bvis[i, 4] += q * dx * dz
-            bvis[i, 5] += q * dy * dz
-        gb[i, 0] = bx
-        gb[i, 1] = by
-        gb[i, 2] = bz
-        nnb[i] = k2 + nb
+        u0 = 0.0
+        u1 = 0.0
+        u2 = 0.0
+        u3 = 0.0
+        u4 = 0.0
+        u5 = 0.0
+        home = (_home(qz, borigin[2], binv, bdims[2]) * bdims[1]
+                + _home(qy, borigin[1], binv, bdims[1])) * bdims[0] + _home(
+                    qx, borigin[0], binv, bdims[0])
+        if nbd > 0 and bmask[home]:
+            x0, x1 = _cells(qx, borigin[0], binv, bdims[0])
+            y0, y1 = _cells(qy, borigin[1], binv, bdims[1])
+            z0, z1 = _cells(qz, borigin[2], binv, bdims[2])
+            for iz in range(z0, z1 + 1):
+                gz = _gap(qz, borigin[2] + iz * bcell, borigin[2] + (iz + 1) * bcell)
+                for iy in range(y0, y1 + 1):
+                    gy = _gap(qy, borigin[1] + iy * bcell, borigin[1] + (iy + 1) * bcell)
+                    if gy * gy + gz * gz > margin:
+                        continue
+                    row = (iz * bdims[1] + iy) * bdims[0]
+                    for b in range(bstart[row + x0], bstart[row + x1 + 1]):
+                        dx = qx - xb[b, 0]
+                        dy = qy - xb[b, 1]
+                        dz = qz - xb[b, 2]
+                        r2 = dx * dx + dy * dy + dz * dz
+                        if r2 >= h2:
+                            continue
+                        r = math.sqrt(r2)
+                        w, dw = kernel_w_dw(kind, r, h)
+                        sb += bpsi[b] * w
+                        if r2 == 0.0:
+                            continue
+                        f = bvol[b] * dw / r
+                        bx += f * dx
+                        by += f * dy
+                        bz += f * dz
+                        nb += 1
+                        q = f / (r2 + eps)
+                        u0 += q * dx * dx
+                        u1 += q * dy * dy
+                        u2 += q * dz * dz
+                        u3 += q * dx * dy
+                        u4 += q * dx * dz
+                        u5 += q * dy * dz
+        bvis[i, 0] = u0
+        bvis[i, 1] = u1
+        bvis[i, 2] = u2
+        bvis[i, 3] = u3
+        bvis[i, 4] = u4
+        bvis[i, 5] = u5
+        nnb[i] = c + nb
+        rho[i] = mass * sw + sb
         sx += bx
         sy += by
         sz += bz
+        gsum[i, 0] = sx
+        gsum[i, 1] = sy
+        gsum[i, 2] = sz
         den = sx * sx + sy * sy + sz * sz + sq
-        factor[i] = 1.0 / den if den > 1e-9 / (h * h) else 0.0
+        factor[i] = 1.0 / den if den > 1e-9 / h2 else 0.0
+    top = 0
+    for i in range(n):
+        top = max(top, best[i])
+    return top
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _density_rate(v, ntab, ncnt, grad, gb, out):
-    """``(D rho_i / D t) / rho0 = sum_j V_j (v_i - v_j) . grad W_ij + v_i . gb_i`` (1/s); the
-    boundary is static."""
+def _density_rate(v, x, ntab, ncnt, fw, gsum, out):
+    """``(D rho_i / D t) / rho0 = sum_j V_j (v_i - v_j) . grad W_ij + v_i . sum_b V_b grad
+    W_ib = v_i . gsum_i - sum_j fw_ij v_j . (x_i - x_j)`` (1/s); the boundary is static."""
     for i in prange(v.shape[0]):
-        vx = v[i, 0]
-        vy = v[i, 1]
-        vz = v[i, 2]
-        s = vx * gb[i, 0] + vy * gb[i, 1] + vz * gb[i, 2]
+        xi = x[i, 0]
+        yi = x[i, 1]
+        zi = x[i, 2]
+        s = v[i, 0] * gsum[i, 0] + v[i, 1] * gsum[i, 1] + v[i, 2] * gsum[i, 2]
         for k in range(ncnt[i]):
             j = ntab[i, k]
-            s += ((vx - v[j, 0]) * grad[i, k, 0] + (vy - v[j, 1]) * grad[i, k, 1]
-                  + (vz - v[j, 2]) * grad[i, k, 2])
+            s -= fw[i, k] * (v[j, 0] * (xi - x[j, 0]) + v[j, 1] * (yi - x[j, 1])
+                             + v[j, 2] * (zi - x[j, 2]))
         out[i] = s
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _pressure_accel(pi, ntab, ncnt, grad, gb, a):
-    """``a_i = -sum_j (pi_i + pi_j) V_j grad W_ij - pi_i gb_i`` (m/s^2)."""
+def _pressure_accel(pi, x, ntab, ncnt, fw, gsum, a):
+    """``a_i = -sum_j (pi_i + pi_j) V_j grad W_ij - pi_i sum_b V_b grad W_ib
+    = -pi_i gsum_i - sum_j pi_j fw_ij (x_i - x_j)`` (m/s^2)."""
     for i in prange(pi.shape[0]):
+        xi = x[i, 0]
+        yi = x[i, 1]
+        zi = x[i, 2]
         p = pi[i]
-        ax = -p * gb[i, 0]
-        ay = -p * gb[i, 1]
-        az = -p * gb[i, 2]
+        ax = -p * gsum[i, 0]
+        ay = -p * gsum[i, 1]
+        az = -p * gsum[i, 2]
         for k in range(ncnt[i]):
-            f = p + pi[ntab[i, k]]
-            ax -= f * grad[i, k, 0]
-            ay -= f * grad[i, k, 1]
-            az -= f * grad[i, k, 2]
+            j = ntab[i, k]
+            f = pi[j] * fw[i, k]
+            ax -= f * (xi - x[j, 0])
+            ay -= f * (yi - x[j, 1])
+            az -= f * (zi - x[j, 2])
         a[i, 0] = ax
         a[i, 1] = ay
         a[i, 2] = az
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _jacobi(a, src, pi, factor, active, ntab, ncnt, grad, gb, scale, omega, err):
+def _jacobi(a, x, src, pi, factor, active, ntab, ncnt, fw, gsum, scale, omega, err):
     """One relaxed Jacobi update of ``pi`` (see the module docstring); ``err[i]`` gets the
     predicted compression before the update.  Returns the mean of ``err`` (serial sum)."""
     n = pi.shape[0]
     inv = 1.0 / scale
     for i in prange(n):
-        ax = a[i, 0]
-        ay = a[i, 1]
-        az = a[i, 2]
-        s = ax * gb[i, 0] + ay * gb[i, 1] + az * gb[i, 2]
+        xi = x[i, 0]
+        yi = x[i, 1]
+        zi = x[i, 2]
+        s = a[i, 0] * gsum[i, 0] + a[i, 1] * gsum[i, 1] + a[i, 2] * gsum[i, 2]
         for k in range(ncnt[i]):
             j = ntab[i, k]
-            s += ((ax - a[j, 0]) * grad[i, k, 0] + (ay - a[j, 1]) * grad[i, k, 1]
-                  + (az - a[j, 2]) * grad[i, k, 2])
+            s -= fw[i, k] * (a[j, 0] * (xi - x[j, 0]) + a[j, 1] * (yi - x[j, 1])
+                             + a[j, 2] * (zi - x[j, 2]))
         r = src[i] - scale * s
         err[i] = -r if (r < 0.0 and active[i]) else 0.0
         pi[i] = max(pi[i] - omega * r * factor[i] * inv, 0.0)
@@ -211,15 +350,15 @@ def _jacobi(a, src, pi, factor, active, ntab, ncnt, grad, gb, scale, omega, err)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _density_start(rho, rate, rho0, dt, kappa, cap, src, pi, active):
+def _density_start(rho, rate, rho0, dt, pi_prev, cap, src, pi, active):
     """Density solve set-up: source ``1 - rho*/rho0`` with ``rho* = rho + dt D rho / D t`` and
-    the warm start ``pi = 0.5 min(kappa, cap) / dt^2`` where compressed, else 0."""
+    the warm start ``pi = 0.5 min(pi_prev, cap / dt^2)`` where compressed, else 0."""
     inv2 = 1.0 / (dt * dt)
     for i in prange(rho.shape[0]):
         adv = rho[i] / rho0 + dt * rate[i]
         src[i] = 1.0 - adv
         active[i] = True
-        pi[i] = 0.5 * min(kappa[i], cap) * inv2 if adv > 1.0 else 0.0
+        pi[i] = 0.5 * min(pi_prev[i], cap * inv2) if adv > 1.0 else 0.0
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -245,7 +384,7 @@ def _kick(v, a, dt):
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _store(pi, scale, kappa):
-    """``kappa = pi * scale`` (time-step independent warm start)."""
+    """``kappa = pi * scale`` (the stored warm start)."""
     for i in prange(pi.shape[0]):
         kappa[i] = pi[i] * scale
 
@@ -268,7 +407,7 @@ def _drift(x, v, dt):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _visc_apply(u, x, ntab, ncnt, grad, bvis, cf, cb, h, out):
+def _visc_apply(u, x, ntab, ncnt, fw, bvis, cf, cb, h, out):
     """``out = u - dt L u`` for the implicit viscosity of Weiler et al. (2018), with
     ``cf = 10 nu dt`` and ``cb = 10 nu_b dt`` (``2 (d + 2) = 10``)::
 
@@ -288,11 +427,11 @@ def _visc_apply(u, x, ntab, ncnt, grad, bvis, cf, cb, h, out):
             dx = x[i, 0] - x[j, 0]
             dy = x[i, 1] - x[j, 1]
             dz = x[i, 2] - x[j, 2]
-            q = ((ux - u[j, 0]) * dx + (uy - u[j, 1]) * dy + (uz - u[j, 2]) * dz) / (
+            q = fw[i, k] * ((ux - u[j, 0]) * dx + (uy - u[j, 1]) * dy + (uz - u[j, 2]) * dz) / (
                 dx * dx + dy * dy + dz * dz + eps)
-            sx += q * grad[i, k, 0]
-            sy += q * grad[i, k, 1]
-            sz += q * grad[i, k, 2]
+            sx += q * dx
+            sy += q * dy
+            sz += q * dz
         b = bvis[i]
         out[i, 0] = ux - cf * sx - cb * (b[0] * ux + b[3] * uy + b[4] * uz)
         out[i, 1] = uy - cf * sy - cb * (b[3] * ux + b[1] * uy + b[5] * uz)
@@ -300,32 +439,20 @@ def _visc_apply(u, x, ntab, ncnt, grad, bvis, cf, cb, h, out):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _visc_precond(x, ntab, ncnt, grad, bvis, cf, cb, h, pinv):
-    """Inverse of the 3x3 diagonal blocks of ``I - dt L`` (block-Jacobi preconditioner)."""
-    eps = 0.01 * 0.25 * h * h
-    for i in prange(x.shape[0]):
-        m = np.zeros(6)
-        for k in range(ncnt[i]):
-            j = ntab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            q = 1.0 / (dx * dx + dy * dy + dz * dz + eps)
-            gx = grad[i, k, 0] * q
-            gy = grad[i, k, 1] * q
-            gz = grad[i, k, 2] * q
-            m[0] += gx * dx
-            m[1] += gy * dy
-            m[2] += gz * dz
-            m[3] += gx * dy
-            m[4] += gx * dz
-            m[5] += gy * dz
-        a00 = 1.0 - cf * m[0] - cb * bvis[i, 0]
-        a11 = 1.0 - cf * m[1] - cb * bvis[i, 1]
-        a22 = 1.0 - cf * m[2] - cb * bvis[i, 2]
-        a01 = -cf * m[3] - cb * bvis[i, 3]
-        a02 = -cf * m[4] - cb * bvis[i, 4]
-        a12 = -cf * m[5] - cb * bvis[i, 5]
+def _visc_precond(fsum, bvis, cf, cb, pinv):
+    """Inverse of the 3x3 blocks ``(1 - cf fsum_i / 3) I - cb bvis_i``, which approximate the
+    diagonal blocks of ``I - dt L`` (the fluid part by its trace, ``sum_j fw_ij r^2 / (r^2 +
+    0.01 h'^2) / 3`` with the factor ``r^2 / (r^2 + 0.01 h'^2) >= 0.99`` at the distances where
+    neighbours sit dropped): a block-Jacobi preconditioner (``fsum``, ``bvis`` from
+    :func:`_neighbourhood`)."""
+    for i in prange(fsum.shape[0]):
+        d = 1.0 - cf * fsum[i] / 3.0
+        a00 = d - cb * bvis[i, 0]
+        a11 = d - cb * bvis[i, 1]
+        a22 = d - cb * bvis[i, 2]
+        a01 = -cb * bvis[i, 3]
+        a02 = -cb * bvis[i, 4]
+        a12 = -cb * bvis[i, 5]
         c00 = a11 * a22 - a12 * a12
         c01 = a02 * a12 - a01 * a22
         c02 = a01 * a12 - a02 * a11
@@ -394,7 +521,9 @@ class DFSPHSolver:
     max_iterations : int
         Most iterations of each solve.
     min_iterations : int
-        Fewest iterations of each solve (2).
+        Fewest iterations of the density solve (2).
+    min_divergence_iterations : int
+        Fewest iterations of the divergence solve (1).
 
     Attributes
     ----------
@@ -405,7 +534,7 @@ class DFSPHSolver:
     """
 
     def __init__(self, rest_volume, support, kind, max_density_error, max_divergence_error,
-                 max_iterations, min_iterations=2):
+                 max_iterations, min_iterations=2, min_divergence_iterations=2):
         self.volume = float(rest_volume)
         self.support = float(support)
         self.kind = int(kind)
@@ -413,20 +542,22 @@ class DFSPHSolver:
         self.max_divergence_error = float(max_divergence_error)
         self.max_iterations = int(max_iterations)
         self.min_iterations = int(min_iterations)
+        self.min_divergence_iterations = int(min_divergence_iterations)
         self.density_iterations = 0
         self.divergence_iterations = 0
         self.density_error = 0.0
         self.divergence_error = 0.0
         self.viscosity_iterations = 0
         self._n = -1
-        self._cap = -1
+        self._cap = 40
 
     def _allocate(self, n, cap):
         if n != self._n:
             self.factor = np.empty(n)
-            self.gb = np.empty((n, 3))
+            self.gsum = np.empty((n, 3))
             self.nnb = np.empty(n, dtype=np.int32)
             self.ncnt = np.empty(n, dtype=np.int32)
+            self.rho = np.empty(n)
             self.rate = np.empty(n)
             self.src = np.empty(n)
             self.pi = np.zeros(n)
@@ -434,47 +565,67 @@ class DFSPHSolver:
             self.active = np.empty(n, dtype=np.bool_)
             self.err = np.empty(n)
             self.a = np.empty((n, 3))
+            self.fsum = np.empty(n)
             self.bvis = np.empty((n, 6))
             self._n = n
-            self._cap = -1
-        if cap != self._cap:
-            self.ntab = np.empty((n, cap), dtype=np.int32)
-            self.grad = np.empty((n, cap, 3))
-            self._cap = cap
+            self.ntab = None
+        if self.ntab is None or self.ntab.shape[1] != cap + 1:
+            self.ntab = np.empty((n, cap + 1), dtype=np.int32)  # + a spare column
+            self.fw = np.empty((n, cap), dtype=np.float32)
 
-    def prepare(self, x, tab, cnt, xb, btab, bcnt, bvol):
-        """Compact the neighbour lists, precompute the kernel gradients and ``alpha_i``.
+    def neighbourhood(self, x, start, origin, cell, dims, boundary, mass):
+        """Neighbours, kernel gradients, densities and ``alpha_i`` at positions ``x``.
 
         Parameters
         ----------
         x : (N, 3) float64
-            Fluid positions (m).
-        tab, cnt : (N, K) int32, (N,) int32
-            Fluid neighbour lists (any superset of the pairs within ``h``, rows sorted).
-        xb : (M, 3) float64
-            Boundary positions (m).
-        btab, bcnt : (N, L) int32, (N,) int32
-            Boundary neighbour lists of the fluid particles.
-        bvol : (M,) float64
-            Boundary volumes (m^3).
+            Fluid positions (m), sorted by the grid described by the next four arguments.
+        start : (C + 1,) int64
+            Cell ranges of ``x`` (a stable counting sort of ``x`` by cell).
+        origin : (3,) float64
+            Lower corner of the grid (m).
+        cell : float
+            Cell edge (m), ``h / 2`` slightly padded.
+        dims : (3,) int64
+            Cells per axis.
+        boundary : tuple
+            ``(points, start, origin, cell, dims, mask, volumes, psi)`` of the boundary
+            particles, sorted by their own grid of the same cell edge (``psi = rho0 V_b``, kg;
+            ``mask`` from :func:`boundary_reach_mask`).
+        mass : float
+            Fluid particle mass (kg).
+
+        Returns
+        -------
+        rho : (N,) float64
+            Densities (kg/m^3), an internal array overwritten by the next call.
         """
         n = x.shape[0]
-        self._allocate(n, max(int(tab.shape[1]), 1))
-        _prepare(x, tab, cnt, xb, btab, bcnt, bvol, self.volume, self.support, self.kind,
-                 self.ntab, self.ncnt, self.grad, self.gb, self.factor, self.nnb, self.bvis)
+        xb, bstart, borigin, bcell, bdims, bmask, bvol, bpsi = boundary
+        while True:
+            self._allocate(n, self._cap)
+            best = _neighbourhood(x, start, origin, cell, dims, xb, bstart, borigin, bcell,
+                                  bdims, bmask, bvol, bpsi, self.volume, mass, self.support, self.kind,
+                                  self.ntab, self.ncnt, self.fw, self.gsum, self.factor,
+                                  self.nnb, self.rho, self.fsum, self.bvis)
+            if best <= self._cap:
+                break
+            self._cap = int(best) + 8  # rare: a compressed particle has more neighbours
+        self._x = x  # the solves of this step use these positions (the drift comes last)
+        return self.rho
 
     def density_rate(self, v):
-        """``(D rho_i / D t) / rho0`` (1/s) for velocities ``v`` (after :meth:`prepare`)."""
-        _density_rate(v, self.ntab, self.ncnt, self.grad, self.gb, self.rate)
+        """``(D rho_i / D t) / rho0`` (1/s) for velocities ``v`` (after :meth:`neighbourhood`)."""
+        _density_rate(v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.rate)
         return self.rate
 
-    def _iterate(self, pi, scale, tol):
+    def _iterate(self, pi, scale, tol, min_iterations):
         it = 0
         err = math.inf
-        while it < self.max_iterations and (it < self.min_iterations or err > tol):
-            _pressure_accel(pi, self.ntab, self.ncnt, self.grad, self.gb, self.a)
-            err = _jacobi(self.a, self.src, pi, self.factor, self.active, self.ntab, self.ncnt,
-                          self.grad, self.gb, scale, _OMEGA, self.err)
+        while it < self.max_iterations and (it < min_iterations or err > tol):
+            _pressure_accel(pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
+            err = _jacobi(self.a, self._x, self.src, pi, self.factor, self.active, self.ntab,
+                          self.ncnt, self.fw, self.gsum, scale, _OMEGA, self.err)
             it += 1
             if not math.isfinite(err):
                 break
@@ -496,8 +647,9 @@ class DFSPHSolver:
         _divergence_start(self.rate, self.nnb, DFSPH_MIN_NEIGHBOURS, dt, kappa_v,
                           DFSPH_WARM_START_CAP_V, self.src, self.pi_v, self.active)
         # err is a mean rate (1/s); the tolerance is per step.
-        it, err = self._iterate(self.pi_v, dt, self.max_divergence_error / dt)
-        _pressure_accel(self.pi_v, self.ntab, self.ncnt, self.grad, self.gb, self.a)
+        it, err = self._iterate(self.pi_v, dt, self.max_divergence_error / dt,
+                               self.min_divergence_iterations)
+        _pressure_accel(self.pi_v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
         _kick(v, self.a, dt)
         _store(self.pi_v, dt, kappa_v)
         self.divergence_iterations = it
@@ -510,7 +662,7 @@ class DFSPHSolver:
         self.divergence_iterations = 0
         self.divergence_error = 0.0
 
-    def density_solve(self, v, rho, rho0, dt, kappa):
+    def density_solve(self, v, rho, rho0, dt, pi_prev):
         """Make the predicted density ``rho0`` (Bender & Koschier 2017, Alg. 3), in place.
 
         Parameters
@@ -523,16 +675,16 @@ class DFSPHSolver:
             Rest density (kg/m^3).
         dt : float
             Step (s).
-        kappa : (N,) float64
-            Warm start in, converged ``pi dt^2`` out (dimensionless).
+        pi_prev : (N,) float64
+            The previous step's ``pi`` in (warm start), this step's out (m^2/s^2).
         """
         self.density_rate(v)
-        _density_start(rho, self.rate, rho0, dt, kappa, DFSPH_WARM_START_CAP, self.src,
+        _density_start(rho, self.rate, rho0, dt, pi_prev, DFSPH_WARM_START_CAP, self.src,
                        self.pi, self.active)
-        it, err = self._iterate(self.pi, dt * dt, self.max_density_error)
-        _pressure_accel(self.pi, self.ntab, self.ncnt, self.grad, self.gb, self.a)
+        it, err = self._iterate(self.pi, dt * dt, self.max_density_error, self.min_iterations)
+        _pressure_accel(self.pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
         _kick(v, self.a, dt)
-        _store(self.pi, dt * dt, kappa)
+        pi_prev[:] = self.pi
         self.density_iterations = it
         self.density_error = float(err)
 
@@ -572,8 +724,8 @@ class DFSPHSolver:
             self._vn = n
         pinv, r, z, p, q = self._pinv, self._r, self._z, self._p, self._q
         b = v.copy()
-        _visc_precond(x, self.ntab, self.ncnt, self.grad, self.bvis, cf, cb, h, pinv)
-        _visc_apply(v, x, self.ntab, self.ncnt, self.grad, self.bvis, cf, cb, h, q)
+        _visc_precond(self.fsum, self.bvis, cf, cb, pinv)
+        _visc_apply(v, x, self.ntab, self.ncnt, self.fw, self.bvis, cf, cb, h, q)
         r[:] = b
         r -= q
         bnorm2 = _dot(b, b)
@@ -583,7 +735,7 @@ class DFSPHSolver:
         it = 0
         tol2 = tolerance * tolerance * bnorm2
         while it < max_iterations and _dot(r, r) > tol2:
-            _visc_apply(p, x, self.ntab, self.ncnt, self.grad, self.bvis, cf, cb, h, q)
+            _visc_apply(p, x, self.ntab, self.ncnt, self.fw, self.bvis, cf, cb, h, q)
             pq = _dot(p, q)
             if not pq > 0.0:
                 break

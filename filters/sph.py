@@ -51,7 +51,7 @@ import numpy as np
 from numba import njit, prange
 
 from .boundary import BoundaryParticles, lattice_volume
-from .dfsph import DFSPHSolver
+from .dfsph import DFSPHSolver, boundary_reach_mask
 from .kernels import cohesion_c, kernel_dw, kernel_id, kernel_w
 from .neighbors import _counting_sort, _grid_keys, bounds, grid_query_padded
 from .simulation import OutputSpec, Simulation, SimulationUnstableError, State, Frame
@@ -67,6 +67,8 @@ def default_support_factor(kernel: str) -> float:
 _CELL_PAD = 1.0 + 1e-9
 _DFSPH_MAX_DT = 0.005  # s, default largest DFSPH step
 _DFSPH_MIN_DT = 1e-5  # s, smallest DFSPH step (a faster fluid is a blow-up here)
+_DFSPH_BUSY = 20  # density-solve iterations above which the next step shrinks
+_DFSPH_EASY = 10  # ... below which it may grow again
 _REACH = 2  # grid cells per support radius (see filters.neighbors)
 
 
@@ -159,6 +161,14 @@ def _permute(x, v, ids, order, xo, vo, io):
             xo[k, c] = x[i, c]
             vo[k, c] = v[i, c]
         io[k] = ids[i]
+
+
+@njit(cache=True, error_model="numpy")
+def _is_identity(order):
+    for k in range(order.shape[0]):
+        if order[k] != k:
+            return False
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -541,7 +551,7 @@ class SPHLiquid(Simulation):
     original index; particles are re-ordered by grid cell at every list rebuild), ``anchor``
     (positions at the last rebuild, which decide the next one) and ``kinematics``
     (``[max |v|, max |a|]`` of the last step, which the adaptive step uses; DFSPH adds the last
-    step), and for DFSPH the warm starts ``kappa`` and ``kappa_v`` (see :mod:`filters.dfsph`),
+    step), and for DFSPH the warm starts ``pi`` and ``kappa_v`` (see :mod:`filters.dfsph`),
     so a restored checkpoint continues bit-identically (tested).  After each DFSPH step,
     :attr:`last_density_iterations`, :attr:`last_divergence_iterations`,
     :attr:`last_density_error` and :attr:`last_divergence_error` describe the two solves.
@@ -645,7 +655,10 @@ class SPHLiquid(Simulation):
             bx = boundary.points
             bv = boundary.volumes
             blo = bx.min(axis=0)
-            cell = h * (1.0 + 2.0 * skin) * _CELL_PAD / _REACH
+            # DFSPH finds its neighbours afresh every step (its steps move particles farther
+            # than any affordable skin); WCSPH reuses Verlet lists of radius h (1 + 2 skin).
+            reach = h if solver == "dfsph" else h * (1.0 + 2.0 * skin)
+            cell = reach * _CELL_PAD / _REACH
             bdims = (np.floor((bx.max(axis=0) - blo) / cell) + 1).astype(np.int64)
             if float(np.prod(bdims.astype(np.float64))) > 2e8:
                 raise ValueError("boundary spans more than 2e8 grid cells; increase spacing")
@@ -677,7 +690,7 @@ class SPHLiquid(Simulation):
         self._kind = kernel_id(kernel)
         self._gravity = np.array(gravity, dtype=np.float64)
         self._field = field
-        self._bcell = h * (1.0 + 2.0 * skin) * _CELL_PAD / _REACH
+        self._bcell = (h if solver == "dfsph" else h * (1.0 + 2.0 * skin)) * _CELL_PAD / _REACH
         self._skin = skin * h
         self._tab = None
         self._bpsi = rest_density * np.asarray(bv)
@@ -722,9 +735,14 @@ class SPHLiquid(Simulation):
         if solver == "dfsph":
             self._dfsph = DFSPHSolver(volume, h, self._kind, max_density_error,
                                       max_divergence_error, max_iterations)
-            state.extra["kappa"] = np.zeros(n)
+            state.extra["pi"] = np.zeros(n)
             state.extra["kappa_v"] = np.zeros(n)
-            state.extra["kinematics"] = np.append(state.extra["kinematics"], max_dt)
+            # [.., last step, step cap]: the cap starts where gravity alone compresses the fluid
+            # by the tolerance in one step and then follows the density solver's effort.
+            gnorm = float(np.linalg.norm(gravity))
+            cap = (min(max_dt, math.sqrt(max_density_error * spacing / gnorm)) if gnorm > 0.0
+                   else max_dt)
+            state.extra["kinematics"] = np.append(state.extra["kinematics"], [max_dt, cap])
             self._zero_p = np.zeros(n)
             if kinematic_viscosity is None:  # Monaghan's nu = alpha c h' / (2 (d + 2))
                 self._nu = (viscosity * speed_of_sound * 0.5 * h / 10.0,
@@ -732,6 +750,9 @@ class SPHLiquid(Simulation):
             else:
                 self._nu = (kinematic_viscosity, kinematic_viscosity)
             self._bmirror = np.full(bx.shape[0], -1.0)
+            self._boundary = (bx, bstart, blo, self._bcell, bdims,
+                              boundary_reach_mask(bx, blo, self._bcell, bdims), bv, self._bpsi)
+            self._no_boundary = (np.zeros((n, 1), dtype=np.int32), np.zeros(n, dtype=np.int32))
         if threads is None:
             threads = 1 if n < 20_000 else numba.config.NUMBA_NUM_THREADS
         self.threads = threads
@@ -749,7 +770,10 @@ class SPHLiquid(Simulation):
         previous = numba.get_num_threads()
         numba.set_num_threads(self.threads)
         try:
-            self._ensure_lists()
+            if self.model.solver == "dfsph":
+                self._neighbourhood()
+            else:
+                self._ensure_lists()
             self._evaluate_density()
         finally:
             numba.set_num_threads(previous)
@@ -759,14 +783,17 @@ class SPHLiquid(Simulation):
             "pressure": self._p.copy(), "id": s.extra["id"].copy()})
 
     def max_step(self) -> float:
-        """Adaptive step (s).  WCSPH: CFL with viscous term and force condition; DFSPH: the
-        velocity CFL ``cfl * spacing / max |v|``, at least 1e-5 s; at most ``max_dt``."""
+        """Adaptive step (s).  WCSPH: CFL with viscous term and force condition.  DFSPH: the
+        velocity CFL ``cfl * spacing / max |v|``, at most ``max_dt`` and at most a cap that
+        follows the density solver's effort (see :meth:`_update_step_cap`); at least 1e-5 s."""
         m = self.model
         if m.solver == "dfsph":
-            vmax = float(self.state.extra["kinematics"][0])
-            if vmax * self.max_dt > m.cfl * m.spacing:
-                return max(m.cfl * m.spacing / vmax, _DFSPH_MIN_DT)
-            return self.max_dt
+            kin = self.state.extra["kinematics"]
+            vmax = float(kin[0])
+            dt = min(self.max_dt, float(kin[3]) if kin.shape[0] > 3 else self.max_dt)
+            if vmax * dt > m.cfl * m.spacing:
+                dt = m.cfl * m.spacing / vmax
+            return max(dt, _DFSPH_MIN_DT)
         vmax, amax = (float(v) for v in self.state.extra["kinematics"][:2])
         hs = 0.5 * m.support
         dt = m.cfl * hs / (m.speed_of_sound * (1.0 + 0.6 * m.viscosity) + vmax)
@@ -775,6 +802,25 @@ class SPHLiquid(Simulation):
         return min(dt, self.max_dt)
 
     # -- internals ------------------------------------------------------------------------
+    def _update_step_cap(self, cap: float, dt: float, iterations: int) -> float:
+        """DFSPH step cap after a step of ``dt`` whose density solve took ``iterations``.
+
+        The velocity CFL condition alone lets a tall resting column take ``max_dt`` steps,
+        and a relaxed Jacobi solve cannot carry the missing hydrostatic pressure through
+        dozens of layers in one step: the bottom compresses a little more every step until the
+        flow blows up (measured: a 76-layer column at 5 ms steps).  Like SPlisHSPlasH's
+        iteration-aware CFL mode, the step therefore follows the solver: it shrinks to 0.9 dt
+        when the solve needed more than 20 iterations (0.5 dt when it did not converge) and
+        grows by 10 % per step, up to ``max_dt``, while it needs fewer than 10.
+        """
+        if iterations >= self.model.max_iterations:
+            return 0.5 * dt
+        if iterations > _DFSPH_BUSY:
+            return 0.9 * dt
+        if iterations < _DFSPH_EASY:
+            return min(1.1 * cap, self.max_dt)
+        return cap
+
     def _ensure_lists(self):
         """Make the neighbour lists valid for the current positions (Verlet lists with a skin).
 
@@ -822,7 +868,7 @@ class SPHLiquid(Simulation):
             s.positions = xo
             s.velocities = vo
             s.extra["id"] = io
-            for name in ("kappa", "kappa_v"):  # DFSPH warm starts follow their particles
+            for name in ("pi", "kappa_v"):  # DFSPH warm starts follow their particles
                 if name in s.extra:
                     s.extra[name] = s.extra[name][order]
             sx = xo
@@ -843,6 +889,38 @@ class SPHLiquid(Simulation):
         self._bcapacity = max(best, 1) + 4
         _sort_rows(self._btab, self._bcnt)
 
+    def _neighbourhood(self):
+        """DFSPH: sort the particles by grid cell (cells of ``h / 2``; a stable counting sort,
+        the identity on already sorted particles) and compute neighbours, kernel gradients,
+        densities and ``alpha_i`` in one pass (:meth:`DFSPHSolver.neighbourhood`)."""
+        s = self.state
+        m = self.model
+        x = s.positions
+        cell = m.support * _CELL_PAD / _REACH
+        lo, hi, finite = bounds(x)
+        if not finite:
+            raise SimulationUnstableError(s.time, "non-finite positions", self.instability_hint)
+        dims_f = np.floor((hi - lo) / cell) + 1.0
+        if float(np.prod(dims_f)) > 2e8:
+            raise SimulationUnstableError(s.time, "particle spread",
+                                          "particles spread over more than 2e8 grid cells")
+        dims = dims_f.astype(np.int64)
+        keys = _grid_keys(x, lo, 1.0 / cell, dims)
+        start, order = _counting_sort(keys, int(np.prod(dims)), numba.get_num_threads())
+        if not _is_identity(order):
+            xo = np.empty_like(x)
+            vo = np.empty_like(s.velocities)
+            io = np.empty_like(s.extra["id"])
+            _permute(x, s.velocities, s.extra["id"], order, xo, vo, io)
+            s.positions = xo
+            s.velocities = vo
+            s.extra["id"] = io
+            for name in ("pi", "kappa_v"):  # warm starts follow their particles
+                if name in s.extra and s.extra[name].shape == (x.shape[0],):
+                    s.extra[name] = s.extra[name][order]
+        self._rho = self._dfsph.neighbourhood(s.positions, start, lo, cell, dims,
+                                              self._boundary, m.mass)
+
     def set_state(self, state: State) -> None:
         super().set_state(state)
         self._tab = None  # lists belong to the old state
@@ -850,14 +928,15 @@ class SPHLiquid(Simulation):
     def _evaluate_density(self):
         m = self.model
         x = self.state.positions
-        _density(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt, self._bpsi,
-                 m.mass, m.support, self._kind, self._rho)
+        if m.solver != "dfsph":  # DFSPH: densities come from _neighbourhood
+            _density(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt,
+                     self._bpsi, m.mass, m.support, self._kind, self._rho)
         if m.solver == "dfsph":
             # Pressure of the last step's two solves: p = (pi + pi_v) rho^2 / rho0, with
-            # pi = kappa / dt^2 and pi_v = kappa_v / dt (see filters.dfsph).
+            # pi_v = kappa_v / dt (see filters.dfsph).
             ex = self.state.extra
             dt = float(ex["kinematics"][2])
-            self._p[:] = ((ex["kappa"] / (dt * dt) + ex["kappa_v"] / dt)
+            self._p[:] = ((ex["pi"] + ex["kappa_v"] / dt)
                           * self._rho ** 2 / m.rest_density)
             err = max(float((self._rho / m.rest_density - 1.0).max()), 0.0)
         else:
@@ -929,7 +1008,10 @@ class SPHLiquid(Simulation):
         s = self.state
         m = self.model
         solver = self._dfsph
-        self._ensure_lists()
+        for name in ("pi", "kappa_v"):
+            if s.extra.get(name) is None or s.extra[name].shape != (s.n_points,):
+                s.extra[name] = np.zeros(s.n_points)  # e.g. a state written by a WCSPH run
+        self._neighbourhood()
         self._evaluate_density()
         mean_err = self.mean_density_error
         if not math.isfinite(mean_err) or mean_err > m.density_error_limit:
@@ -939,17 +1021,13 @@ class SPHLiquid(Simulation):
         x = s.positions
         v = s.velocities
         ex = s.extra
-        for name in ("kappa", "kappa_v"):
-            if ex.get(name) is None or ex[name].shape != (s.n_points,):
-                ex[name] = np.zeros(s.n_points)  # e.g. a state written by a WCSPH run
-        solver.prepare(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt,
-                       m.boundary_volumes)
+        tab, cnt = solver.ntab, solver.ncnt
         solver.divergence_solve(v, dt, ex["kappa_v"])
         g = self._gravity
         if m.surface_tension > 0.0:
-            _normals(x, self._rho, self._tab, self._cnt, m.mass, m.support, self._kind, self._nrm)
-            amax = _accelerations(x, v, self._rho, self._zero_p, self._tab, self._cnt,
-                                  m.boundary_points, self._btab, self._bcnt, self._bpsi,
+            _normals(x, self._rho, tab, cnt, m.mass, m.support, self._kind, self._nrm)
+            amax = _accelerations(x, v, self._rho, self._zero_p, tab, cnt,
+                                  m.boundary_points, *self._no_boundary, self._bpsi,
                                   self._bmirror, m.mass, m.support, self._kind, 0.0, 0.0,
                                   m.speed_of_sound, m.rest_density, m.surface_tension,
                                   self._nrm, g, self._a)
@@ -964,7 +1042,7 @@ class SPHLiquid(Simulation):
             amax = float(np.sqrt((self._a ** 2).sum(axis=1)).max())
         solver.kick(v, self._a, dt)
         self.last_viscosity_iterations = solver.viscosity_solve(v, x, dt, *self._nu)
-        solver.density_solve(v, self._rho, m.rest_density, dt, ex["kappa"])
+        solver.density_solve(v, self._rho, m.rest_density, dt, ex["pi"])
         self.last_density_iterations = solver.density_iterations
         self.last_divergence_iterations = solver.divergence_iterations
         self.last_density_error = solver.density_error
@@ -979,12 +1057,15 @@ class SPHLiquid(Simulation):
         vmax = solver.drift(x, v, dt)
         if m.xsph > 0.0:
             out = np.empty_like(v)
-            _xsph(v, self._rho, x, self._tab, self._cnt, m.mass, m.support, self._kind, m.xsph, out)
+            _xsph(v, self._rho, x, tab, cnt, m.mass, m.support, self._kind, m.xsph, out)
             s.velocities = out
             vmax = float(np.sqrt((out ** 2).sum(axis=1)).max())
         if m.container is not None:
             self.contained += int(_contain(x, s.velocities, self._clo, self._chi))
-        ex["kinematics"] = np.array([vmax, amax, dt])
+        old = ex["kinematics"]
+        cap = self._update_step_cap(float(old[3]) if old.shape[0] > 3 else self.max_dt, dt,
+                                    solver.density_iterations)
+        ex["kinematics"] = np.array([vmax, amax, dt, cap])
         if not math.isfinite(vmax):
             raise SimulationUnstableError(s.time + dt, "non-finite velocities", self.instability_hint)
         if m.domain is not None:

@@ -25,24 +25,35 @@ def lattice(lo, hi, s):
 
 
 def _settled_column():
+    """A 10-layer column settled for 1.5 s, then its pressure sampled over 50 steps.
+
+    Depth is measured from the free surface, the top particle layer plus half a spacing (the
+    settled column stands lower than the lattice it started from), and sampled in the band at
+    least 1.5 support radii from the floor, the side walls and the surface: next to the
+    boundary particles and at the surface the SPH pressure carries the well-known layering of
+    a particle discretisation, which is not the solver's error.
+    """
     s, width, height = 0.02, 0.24, 0.2
     x = lattice((0, 0, 0), (width, width, height), s)
     walls = box_boundary((0, 0, 0), (width, width, 0.3), s)
     sim = SPHLiquid(x, spacing=s, boundary=walls, solver="dfsph", viscosity=1.0,
                     boundary_viscosity=0.0, max_dt=0.002)
     sim.advance_to(1.5)
-    ratios, errors = [], []
-    for _ in range(50):  # pressure averaged over 50 full steps (one step's is noisy)
+    reach = 1.5 * sim.model.support
+    pressure, hydrostatic, errors = 0.0, 0.0, []
+    for _ in range(50):  # pooled over 50 full steps (one step's field is noisy)
         sim.step(sim.max_step())
         f = sim.frame()
         z, p = f.points[:, 2], f.point_data["pressure"]
-        depth = height - z
-        inner = (np.abs(f.points[:, :2] - 0.5 * width) < 0.5 * width - sim.model.support).all(1)
-        band = inner & (depth > 0.3 * height) & (depth < 0.9 * height)  # no surface, no floor
+        top = z[z > z.max() - 0.5 * s].mean() + 0.5 * s
+        depth = top - z
+        inner = (np.abs(f.points[:, :2] - 0.5 * width) < 0.5 * width - reach).all(1)
+        band = inner & (z > reach) & (depth > reach)
         assert band.sum() > 50
-        ratios.append(p[band].mean() / (1000.0 * 9.81 * depth[band].mean()))
+        pressure += p[band].sum()
+        hydrostatic += (1000.0 * 9.81 * depth[band]).sum()
         errors.append(sim.last_density_error)
-    return sim, height, float(np.mean(ratios)), errors
+    return sim, height, pressure / hydrostatic, errors
 
 
 @pytest.fixture(scope="module")
@@ -56,11 +67,8 @@ def test_hydrostatic_column_at_rest(settled_column):
     assert sim.mean_density_error < 2 * sim.model.max_density_error
     speed = np.sqrt((sim.state.velocities ** 2).sum(axis=1)).max()
     assert speed < 0.01 * math.sqrt(9.81 * height)
-    assert ratio == pytest.approx(1.0, abs=0.15)  # measured 0.91; see the strict test below
 
 
-@pytest.mark.xfail(strict=True, reason="the pressure the DFSPH solves report in a settled "
-                   "10-layer column is 9 % below rho g d (measured 0.91); not yet explained")
 def test_hydrostatic_pressure_within_5_percent(settled_column):
     assert settled_column[2] == pytest.approx(1.0, abs=0.05)
 
@@ -128,7 +136,7 @@ def test_bitwise_identical_across_thread_counts():
     two = _run_dam(2)
     np.testing.assert_array_equal(one.state.positions, two.state.positions)
     np.testing.assert_array_equal(one.state.velocities, two.state.velocities)
-    np.testing.assert_array_equal(one.state.extra["kappa"], two.state.extra["kappa"])
+    np.testing.assert_array_equal(one.state.extra["pi"], two.state.extra["pi"])
     w1 = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, threads=1)
     w2 = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, threads=2)
     w1.advance_to(0.02)
@@ -140,7 +148,7 @@ def test_checkpoint_resumes_bit_identically():
     sim = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
     sim.advance_to(0.03)
     saved = State.from_arrays(sim.get_state().to_arrays())
-    assert {"kappa", "kappa_v"} <= set(saved.extra)
+    assert {"pi", "kappa_v"} <= set(saved.extra)
     sim.advance_to(0.08)
     other = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
     other.set_state(saved)
@@ -148,7 +156,7 @@ def test_checkpoint_resumes_bit_identically():
     other.advance_to(0.08)
     np.testing.assert_array_equal(other.state.positions, sim.state.positions)
     np.testing.assert_array_equal(other.state.velocities, sim.state.velocities)
-    np.testing.assert_array_equal(other.state.extra["kappa"], sim.state.extra["kappa"])
+    np.testing.assert_array_equal(other.state.extra["pi"], sim.state.extra["pi"])
 
 
 def test_dam_break_scene_at_half_spacing_runs():
