@@ -1,40 +1,57 @@
-"""SPH benchmarks, side by side in one run: blobflow's WCSPH against pySPlisHSPlasH and NVIDIA Warp.
+"""SPH benchmarks, side by side in one run: blobflow's DFSPH and WCSPH against SPlisHSPlasH's.
 
-Run under the benchmark lock::
+Run on a quiet machine, one benchmark at a time::
 
-    flock /tmp/blobflow-bench.lock env OPENBLAS_NUM_THREADS=1 /tmp/venv/bin/python benchmarks/bench_sph.py
+    env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sph.py            # everything (~1 hour)
+    env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sph.py persim_10k_blobflow_dfsph ...
 
-Parts (each in its own subprocess, so that peers with their own runtimes and the memory probe do
-not disturb each other):
+The figure users live by is **wall seconds per simulated second** at a stated density error, so
+that is what the ``persim_*`` parts measure, on one scene for all four solvers:
 
-``nsearch``
-    Fixed-radius neighbour search at the SPH support radius (2 spacings) on a jittered lattice
-    of 100k and 1M points: blobflow's grid (build + full CSR lists, and build + pairs i < j)
-    against ``scipy.spatial.cKDTree`` (build + ``query_pairs``); plus the CSR-lists vs
-    cell-iteration comparison that decided how the SPH kernels visit neighbours.
-``memory``
-    Peak resident memory per fluid particle of a 1M-particle dam break (construction and two
-    steps), measured by sampling RSS in a thread, over a baseline taken after compilation.
-``wcsph``
-    Particle-steps per second on the same dam break at ~50k and ~200k fluid particles with the
-    same fixed time step: blobflow WCSPH vs pySPlisHSPlasH WCSPH (simulationMethod 0, Akinci
-    2012 boundary particles).
-``warp``
-    NVIDIA Warp's SPH example (``warp.examples.core.example_sph``) on the CPU device with its
-    smoothing length set for ~50k particles: time per sub-step.
-``realtime``
-    Wall seconds per simulated second on a ~10k-particle dam break over the first 0.1 s:
-    blobflow WCSPH (adaptive CFL step; its maximum density error is reported) vs
-    pySPlisHSPlasH DFSPH (its default solver, maxError 1 %, CFL-adaptive steps).
+* **The dam break**: a water column ``a x a/2 x 2a`` (spacing 1 cm, ``a`` chosen for ~10k, ~50k
+  and ~200k fluid particles) against the left wall of a closed tank ``4a x a/2 x 3a``, gravity
+  ``-z``, started at rest, simulated for 0.5 s so that the front crosses the tank (at 10k it
+  hits the far wall).  Both codes sample the fluid on the same lattice, cell centres ``(i +
+  1/2) s`` one spacing from the wall particles (SPlisHSPlasH: a block from ``-r`` and a wall
+  box enlarged by ``2r``; its boundary particles sample the box surface, Akinci et al. 2012).
+* **Same physics**: kinematic viscosity ``nu = 0.001 m^2/s`` (about the dam-break scene's
+  value), for DFSPH by Weiler et al. (2018)'s implicit solver on both sides (SPlisHSPlasH's
+  "Weiler et al. 2018", ``viscoMaxError`` 0.1 %), for WCSPH explicitly (Monaghan's artificial
+  viscosity with ``alpha = 10 nu / (c s)``, SPlisHSPlasH's "standard" viscosity with ``nu``);
+  no surface tension, rest density 1000 kg/m^3, the cubic spline with support 2 spacings.
+* **Same accuracy**: the DFSPH solvers stop at a mean density error of 0.1 % and a mean
+  divergence error of 1 % per step (blobflow's defaults; SPlisHSPlasH's ``maxError`` 0.1,
+  ``maxErrorV`` 1.0 in its percent); each side reports the density error it actually reached,
+  mean over particles and worst particle, sampled every step.  WCSPH: the same Tait equation
+  of state on both sides (``B = rho0 c^2 / 7`` with blobflow's speed of sound ``10 sqrt(2 g
+  H)``) and blobflow's acoustic CFL step, given to SPlisHSPlasH as its fixed step (its CFL looks
+  at velocities only, which is unstable for WCSPH).
+* **Each at its natural step**: DFSPH steps from each code's own CFL rule at its default factor
+  (blobflow ``cfl`` 0.4 of a spacing per step, plus its solver-aware cap; SPlisHSPlasH
+  ``cflFactor`` 0.5, i.e. 0.2 of a spacing).  SPlisHSPlasH's steps are capped at 2 ms instead
+  of its default 5 ms: with 5 ms its first step compresses the resting column by 4.4 % on
+  average (40 % at the worst particle, measured at 10k), above the 1 % this comparison holds
+  both codes to; blobflow's cap starts at ``sqrt(max_density_error * spacing / g)`` and follows
+  its solver (:meth:`filters.sph.SPHLiquid.max_step`).
+* **One thread each** (``NUMBA_NUM_THREADS=1``, ``OMP_NUM_THREADS=1``); every part runs in its own
+  process, and SPlisHSPlasH's settings are **read back from the loaded simulation** (a key the
+  loader ignores would otherwise go unnoticed).  Timing starts after the scene is built and,
+  for blobflow, after Numba compiled its kernels on a small copy of the scene.
+* The WCSPH runs at 200k particles simulate 0.1 s instead of 0.5 s (each would take about
+  40 minutes); a WCSPH step costs about the same all along a run (its step is fixed by the speed
+  of sound), and the first 0.1 s, with no list rebuilds at rest, favours it if anything.
 
-All engines run with one thread (NUMBA_NUM_THREADS=1, OMP_NUM_THREADS=1; Warp's CPU kernels are
-serial): the machine has 2 cores shared with other jobs, which makes two-thread timings noisy.
+Also measured (unchanged from earlier versions of this benchmark): fixed-radius neighbour search
+against ``scipy.spatial.cKDTree`` (``nsearch``), and peak memory per fluid particle of a
+1M-particle dam break for each solver (``memory_*``).
+
 Writes ``benchmarks/results/sph.json`` and prints a markdown table.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import subprocess
@@ -46,100 +63,219 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "sph.json"
 GLDISPATCH = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
-THREADS = 1
+SPACING = 0.01
+NU = 0.001  # m^2/s, kinematic viscosity of both codes
+MAX_ERROR = 0.001  # mean density error of the DFSPH solves (fraction)
+MAX_ERROR_V = 0.01  # mean divergence error per step (fraction)
+SIZES = {"10k": 10_000, "50k": 50_000, "200k": 200_000}
+T_END = 0.5
+T_END_WCSPH_200K = 0.1
 
 
 # =============================================================================================
-# Shared set-up: the dam break.
+# The scene.
 # =============================================================================================
 def dam_break_dims(n_target):
-    """Column a x depth x 2a in spacings with depth = a / 2, about n_target particles."""
-    na = int(round((n_target) ** (1.0 / 3.0)))
+    """Column a x depth x 2a in spacings with depth = a / 2, at least n_target particles."""
+    na = int(round(n_target ** (1.0 / 3.0)))
     while na * (na // 2) * (2 * na) < n_target:
         na += 1
     return na, na // 2, 2 * na
 
 
-def blobflow_dam_break(n_target, spacing=0.01, **kw):
+def tank(n_target):
+    na, nd, nh = dam_break_dims(n_target)
+    a, depth, hcol = na * SPACING, nd * SPACING, nh * SPACING
+    return a, depth, hcol, 4 * a, 1.5 * hcol
+
+
+def wcsph_speed_of_sound(n_target):
+    """blobflow's default c = 10 sqrt(2 g H) for the column (H its height plus a spacing)."""
+    na, nd, nh = dam_break_dims(n_target)
+    return 10.0 * math.sqrt(2 * 9.81 * nh * SPACING)
+
+
+def blobflow_dam_break(n_target, solver, **kw):
     from filters.sph_scenarios import dam_break_liquid
 
-    na, nd, nh = dam_break_dims(n_target)
-    sim = dam_break_liquid(column_width=na * spacing, column_height=nh * spacing,
-                           depth=nd * spacing, spacing=spacing, threads=THREADS, **kw)
-    return sim, (na, nd, nh)
+    a, depth, hcol, length, height = tank(n_target)
+    if solver == "dfsph":
+        kw.setdefault("kinematic_viscosity", NU)
+        kw.setdefault("max_density_error", MAX_ERROR)
+        kw.setdefault("max_divergence_error", MAX_ERROR_V)
+    else:  # Monaghan's alpha for nu: nu = alpha c h' / 10 with h' = one spacing
+        kw.setdefault("viscosity", NU * 10.0 / (wcsph_speed_of_sound(n_target) * SPACING))
+    return dam_break_liquid(column_width=a, column_height=hcol, depth=depth, tank_length=length,
+                            tank_height=height, spacing=SPACING, solver=solver, threads=1, **kw)
 
 
-def splishsplash_scene(path, n_target, spacing, method, dt, stop_at, *, stiffness=None,
-                       max_error=None, cfl=False):
-    """Write the same dam break as a SPlisHSPlasH JSON scene (z up, walls by a unit box)."""
-    na, nd, nh = dam_break_dims(n_target)
-    a, depth, hcol = na * spacing, nd * spacing, nh * spacing
-    length, height = 4 * a, 1.5 * hcol
-    r = spacing / 2
+def splishsplash_scene(path, n_target, method, stop_at, dt=None):
+    """The same dam break as a SPlisHSPlasH 2.19 JSON scene (z up, walls from a unit box)."""
+    a, depth, hcol, length, height = tank(n_target)
+    r = SPACING / 2
     box = Path(path).with_suffix(".obj")
     verts = [(x, y, z) for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)]
     faces = [(1, 3, 2), (2, 3, 4), (5, 6, 7), (6, 8, 7), (1, 2, 5), (2, 6, 5), (3, 7, 4),
              (4, 7, 8), (1, 5, 3), (3, 5, 7), (2, 4, 6), (4, 8, 6)]
     box.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in verts)
                    + "".join(f"f {i} {j} {k}\n" for i, j, k in faces))
+    c = wcsph_speed_of_sound(n_target)
     config = {
         "particleRadius": r, "simulationMethod": method, "gravitation": [0, 0, -9.81],
-        "timeStepSize": dt, "cflMethod": 1 if cfl else 0, "cflFactor": 1.0,
-        "cflMaxTimeStepSize": 0.005, "stopAt": stop_at, "boundaryHandlingMethod": 0,
+        "timeStepSize": dt if dt else 0.001, "cflMethod": 0 if dt else 1, "cflFactor": 0.5,
+        "cflMaxTimeStepSize": 0.002, "stopAt": stop_at, "boundaryHandlingMethod": 0,
         "enableVTKExport": False, "enablePartioExport": False, "enableRigidBodyExport": False,
-        "enableStateExport": False, "exponent": 7, "maxIterations": 100,
-        "maxIterationsV": 100, "maxErrorV": 0.1, "enableDivergenceSolver": True,
+        "enableStateExport": False,
+        # Solver settings are read only from these nested blocks (flat keys are ignored).
+        "DFSPH": {"maxError": 100 * MAX_ERROR, "maxIterations": 100,
+                  "maxErrorV": 100 * MAX_ERROR_V, "maxIterationsV": 100,
+                  "enableDivergenceSolver": True},
+        "WCSPH": {"stiffness": 1000.0 * c * c / 7.0, "exponent": 7},
     }
-    if stiffness is not None:
-        config["stiffness"] = stiffness
-    if max_error is not None:
-        config["maxError"] = max_error
     scene = {
         "Configuration": config,
-        "Materials": [{"id": "Fluid", "viscosity": 0.01, "viscosityMethod": 1}],
+        # DFSPH: Weiler et al. (2018)'s implicit viscosity, as blobflow's DFSPH; WCSPH: the
+        # explicit "standard" viscosity, as blobflow's WCSPH (Monaghan's, alpha = 10 nu / (c s)).
+        "Materials": [{"id": "Fluid", "viscosityMethod": 1 if dt else 6,
+                       "Standard viscosity": {"viscosity": NU, "viscosityBoundary": NU},
+                       "Weiler et al. 2018": {"viscosity": NU, "viscosityBoundary": NU,
+                                              "viscoMaxIter": 100, "viscoMaxError": 0.001}}],
+        # Wall particles sample the box surface: enlarged by 2r (r per side) the surface lies
+        # half a spacing outside the fluid lattice, one spacing from the first fluid particles.
         "RigidBodies": [{
             "geometryFile": str(box), "translation": [length / 2, depth / 2, height / 2],
-            "rotationAxis": [1, 0, 0], "rotationAngle": 0, "scale": [length, depth, height],
+            "rotationAxis": [1, 0, 0], "rotationAngle": 0,
+            "scale": [length + 2 * r, depth + 2 * r, height + 2 * r],
             "isDynamic": False, "isWall": True, "mapInvert": True, "mapThickness": 0.0,
             "mapResolution": [20, 20, 20]}],
-        # SPlisHSPlasH samples a block at start + r + i * 2r while inside [start, end]; half a
-        # spacing of slack gives the same na x nd x nh lattice as blobflow.
-        "FluidBlocks": [{"id": "Fluid", "denseMode": 0, "start": [0, 0, 0],
+        # A block samples start + 2r (k + 1) for k < round((end - start) / 2r) - 1.
+        "FluidBlocks": [{"id": "Fluid", "denseMode": 0, "start": [-r, -r, -r],
                          "end": [a + r, depth + r, hcol + r]}],
     }
     Path(path).write_text(json.dumps(scene, indent=1))
 
 
-def run_splishsplash(scene_path, warmup):
-    """Run a scene to its stopAt; per-step wall times from the time-step callback."""
+# =============================================================================================
+# Wall time per simulated second.
+# =============================================================================================
+def part_persim_blobflow(size, solver):
+    import numpy as np
+
+    n_target = SIZES[size]
+    t_end = T_END_WCSPH_200K if (solver == "wcsph" and size == "200k") else T_END
+    warm = blobflow_dam_break(2000, solver)  # compile every kernel outside the timing
+    warm.step(warm.max_step())
+    warm.frame()
+    sim = blobflow_dam_break(n_target, solver)
+    steps, iters, worst_mean, worst_max = 0, 0, 0.0, 0.0
+    dts = []
+    t0 = time.perf_counter()
+    while sim.state.time < t_end - 1e-12:
+        dt = min(sim.max_step(), t_end - sim.state.time)
+        sim.step(dt)
+        steps += 1
+        dts.append(dt)
+        iters += sim.last_density_iterations
+        worst_mean = max(worst_mean, sim.mean_density_error)  # at the step's start positions
+        worst_max = max(worst_max, sim.density_error)
+    wall = time.perf_counter() - t0
+    sim.frame()
+    worst_mean = max(worst_mean, sim.mean_density_error)
+    worst_max = max(worst_max, sim.density_error)
+    v = np.sqrt((sim.state.velocities ** 2).sum(axis=1))
+    m = sim.model
+    return {"code": "blobflow", "solver": solver, "fluid_particles": sim.state.n_points,
+            "boundary_particles": int(m.boundary_points.shape[0]), "sim_time_s": t_end,
+            "wall_s": wall, "wall_s_per_sim_s": wall / t_end, "steps": steps,
+            "mean_dt_s": float(np.mean(dts)), "density_iterations_per_step": iters / steps,
+            "worst_mean_density_error": worst_mean, "worst_particle_density_error": worst_max,
+            "front_x_m": float(np.sort(sim.state.positions[:, 0])[-10]),
+            "max_speed_end_m_s": float(v.max()),
+            "settings": {"cfl": m.cfl, "max_dt": m.max_dt, "max_density_error":
+                         m.max_density_error, "max_divergence_error": m.max_divergence_error,
+                         "viscosity": m.viscosity, "kinematic_viscosity": NU if solver == "dfsph"
+                         else None, "speed_of_sound": m.speed_of_sound, "support_m": m.support}}
+
+
+def part_persim_splishsplash(size, solver):
+    import numpy as np
     import pysplishsplash as sph
 
+    n_target = SIZES[size]
+    wcsph = solver == "wcsph"
+    t_end = T_END_WCSPH_200K if (wcsph and size == "200k") else T_END
+    dt = None
+    if wcsph:  # blobflow's WCSPH step for this column, fixed
+        sim0 = blobflow_dam_break(n_target, "wcsph")
+        dt = sim0.max_step()
+        del sim0
+    out = tempfile.mkdtemp(prefix="sph_bench_")
+    scene = Path(out) / "dam.json"
+    splishsplash_scene(scene, n_target, 0 if wcsph else 4, t_end, dt)
     base = sph.Exec.SimulatorBase()
-    out = tempfile.mkdtemp(prefix="sph_out_")
-    base.init(useGui=False, sceneFile=str(scene_path), outputDir=out)
+    base.init(useGui=False, sceneFile=str(scene), outputDir=out)
     base.initSimulation()
     sim = sph.Simulation.getCurrent()
-    n = sim.getFluidModel(0).numActiveParticles()
-    try:
-        nb = int(sum(sim.getBoundaryModel(i).numberOfParticles()
-                     for i in range(sim.numberOfBoundaryModels())))
-    except Exception:  # noqa: BLE001 - only informative
-        nb = None
-    stamps = []
-    base.setTimeStepCB(lambda: stamps.append(time.perf_counter()))
+    fm = sim.getFluidModel(0)
+    ts = sim.getTimeStep()
+    tm = sph.TimeManager.getCurrent()
+    n = fm.numActiveParticles()
+    visc = fm.getViscosityBase()
+    settings = {  # read back from the loaded simulation
+        "simulationMethod": sim.getValueInt(sim.SIMULATION_METHOD),
+        "boundaryHandlingMethod": sim.getValueInt(sim.BOUNDARY_HANDLING_METHOD),
+        "cflMethod": sim.getValueInt(sim.CFL_METHOD),
+        "cflFactor": sim.getValueFloat(sim.CFL_FACTOR),
+        "cflMaxTimeStepSize": sim.getValueFloat(sim.CFL_MAX_TIMESTEPSIZE),
+        "particleRadius": sim.getValueFloat(sim.PARTICLE_RADIUS),
+        "viscosity_method": type(visc).__name__ if visc is not None else None,
+        "viscosity": visc.getValueFloat(visc.VISCOSITY_COEFFICIENT) if visc is not None else None,
+        "timeStepSize": tm.getTimeStepSize(),
+    }
+    if wcsph:
+        settings["stiffness"] = ts.getValueFloat(ts.STIFFNESS)
+        settings["exponent"] = ts.getValueFloat(ts.EXPONENT)
+    else:
+        settings.update(maxError=ts.getValueFloat(ts.MAX_ERROR),
+                        maxErrorV=ts.getValueFloat(ts.MAX_ERROR_V),
+                        maxIterations=ts.getValueInt(ts.MAX_ITERATIONS),
+                        maxIterationsV=ts.getValueInt(ts.MAX_ITERATIONS_V),
+                        enableDivergenceSolver=ts.getValueBool(ts.USE_DIVERGENCE_SOLVER))
+    density = np.asarray(fm.getFieldBuffer("density"))
+    stats = {"steps": 0, "iters": 0, "worst_mean": 0.0, "worst_max": 0.0, "dts": []}
+
+    def callback():  # densities at the step's start positions (a view, no copy)
+        d = density[:n] * (1.0 / 1000.0) - 1.0
+        stats["steps"] += 1
+        stats["dts"].append(tm.getTimeStepSize())
+        stats["worst_mean"] = max(stats["worst_mean"], float(np.maximum(d, 0.0).mean()))
+        stats["worst_max"] = max(stats["worst_max"], float(d.max()))
+        if not wcsph:
+            stats["iters"] += ts.getValueInt(ts.SOLVER_ITERATIONS)
+
+    base.setTimeStepCB(callback)
     t0 = time.perf_counter()
     base.runSimulation()
-    total = time.perf_counter() - t0
-    tm = sph.TimeManager.getCurrent()
-    steps = len(stamps)
-    timed = stamps[warmup:]
-    per_step = (timed[-1] - timed[0]) / (len(timed) - 1) if len(timed) > 1 else float("nan")
-    return {"fluid_particles": int(n), "boundary_particles": nb, "steps": steps,
-            "wall_s": total, "s_per_step": per_step, "sim_time": float(tm.getTime())}
+    wall = time.perf_counter() - t0
+    nb = int(sum(sim.getBoundaryModel(i).numberOfParticles()
+                 for i in range(sim.numberOfBoundaryModels())))
+    x = np.asarray(fm.getFieldBuffer("position"))[:n]
+    v = np.sqrt((np.asarray(fm.getFieldBuffer("velocity"))[:n].astype(float) ** 2).sum(axis=1))
+    steps = stats["steps"]
+    return {"code": "SPlisHSPlasH", "solver": solver, "version": "2.19",
+            "fluid_particles": int(n), "boundary_particles": nb,
+            "sim_time_s": float(tm.getTime()), "wall_s": wall,
+            "wall_s_per_sim_s": wall / float(tm.getTime()), "steps": steps,
+            "mean_dt_s": float(np.mean(stats["dts"])),
+            "density_iterations_per_step": stats["iters"] / steps if not wcsph else None,
+            "worst_mean_density_error": stats["worst_mean"],
+            "worst_particle_density_error": stats["worst_max"],
+            "front_x_m": float(np.sort(x[:, 0])[-10]), "max_speed_end_m_s": float(v.max()),
+            "settings": settings}
 
 
 # =============================================================================================
-# Parts.
+# Neighbour search and memory.
 # =============================================================================================
 def part_nsearch(compare_passes=True):
     import numpy as np
@@ -272,19 +408,17 @@ def part_nsearch(compare_passes=True):
     return out
 
 
-def part_memory():
+def part_memory(solver):
+    import gc
     import threading
 
-    import numpy as np
     import psutil
 
     proc = psutil.Process()
-    small, _ = blobflow_dam_break(2000)
+    small = blobflow_dam_break(2000, solver)
     small.step(small.max_step())
     small.frame()
     del small
-    import gc
-
     gc.collect()
     base = proc.memory_info().rss
     peak = [base]
@@ -298,7 +432,7 @@ def part_memory():
     th = threading.Thread(target=sample, daemon=True)
     th.start()
     t0 = time.perf_counter()
-    sim, dims = blobflow_dam_break(1_000_000)
+    sim = blobflow_dam_break(1_000_000, solver)
     t_build = time.perf_counter() - t0
     t0 = time.perf_counter()
     for _ in range(2):
@@ -307,159 +441,32 @@ def part_memory():
     stop[0] = True
     th.join()
     n = sim.state.n_points
-    nb = sim.model.boundary_points.shape[0]
-    arrays = sum(a.nbytes for a in (sim.state.positions, sim.state.velocities,
-                                    sim.state.extra["id"], sim._rho, sim._p, sim._a, sim._nrm,
-                                    sim._tab, sim._cnt, sim._btab, sim._bcnt))
-    return {"fluid_particles": n, "boundary_particles": nb,
+    return {"solver": solver, "fluid_particles": n,
+            "boundary_particles": int(sim.model.boundary_points.shape[0]),
             "peak_rss_increase_bytes": peak[0] - base,
             "peak_bytes_per_fluid_particle": (peak[0] - base) / n,
-            "resident_arrays_bytes_per_fluid_particle": arrays / n,
             "build_s": t_build, "s_per_step_1M": t_steps}
-
-
-def part_wcsph_blobflow(n_target, dt, steps, warmup=3, **kw):
-    sim, dims = blobflow_dam_break(n_target, **kw)
-    for _ in range(warmup):
-        sim.step(dt)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        sim.step(dt)
-    per = (time.perf_counter() - t0) / steps
-    return {"fluid_particles": sim.state.n_points,
-            "boundary_particles": int(sim.model.boundary_points.shape[0]), "steps": steps,
-            "s_per_step": per, "particle_steps_per_s": sim.state.n_points / per,
-            "cfl_dt": sim.max_step(), "speed_of_sound": sim.model.speed_of_sound,
-            "max_density_error": sim.density_error}
-
-
-def part_wcsph_splishsplash(n_target, dt, steps, stiffness, warmup=3):
-    with tempfile.TemporaryDirectory() as tmp:
-        scene = Path(tmp) / "dam.json"
-        splishsplash_scene(scene, n_target, 0.01, 0, dt, (steps + warmup + 0.5) * dt,
-                           stiffness=stiffness)
-        r = run_splishsplash(scene, warmup)
-    r["particle_steps_per_s"] = r["fluid_particles"] / r["s_per_step"]
-    return r
-
-
-def part_warp(n_target, substeps=10):
-    import numpy as np
-    import warp as wp
-
-    wp.config.quiet = True
-    wp.init()
-    from warp.examples.core import example_sph
-
-    with wp.ScopedDevice("cpu"):
-        # n = 80 * 20 * 20 / sl^3 in the example: pick sl for ~n_target particles.
-        sl = (32000.0 / n_target) ** (1.0 / 3.0)
-
-        # The example hard-codes smoothing_length = 0.8; rebuild its state for our length.
-        ex = example_sph.Example(stage_path=None)
-        ex.smoothing_length = sl
-        ex.particle_mass = 0.01 * sl ** 3
-        ex.dt = 0.01 * sl
-        ex.n = int(ex.height * (ex.width / 4.0) * (ex.height / 4.0) / (sl ** 3))
-        ex.density_normalization = (315.0 * ex.particle_mass) / (64.0 * np.pi * sl ** 9)
-        ex.pressure_normalization = -(45.0 * ex.particle_mass) / (np.pi * sl ** 6)
-        ex.viscous_normalization = (45.0 * ex.dynamic_visc * ex.particle_mass) / (np.pi * sl ** 6)
-        ex.x = wp.empty(ex.n, dtype=wp.vec3)
-        ex.v = wp.zeros(ex.n, dtype=wp.vec3)
-        ex.rho = wp.zeros(ex.n, dtype=float)
-        ex.a = wp.zeros(ex.n, dtype=wp.vec3)
-        wp.launch(kernel=example_sph.initialize_particles, dim=ex.n,
-                  inputs=[ex.x, sl, ex.width, ex.height, ex.length])
-        grid_size = int(ex.height / (4.0 * sl))
-        ex.grid = wp.HashGrid(grid_size, grid_size, grid_size)
-        ex.renderer = None
-        ex.sim_step_to_frame_ratio = 2
-        ex.step()  # compile + warm up
-        wp.synchronize()
-        ex.sim_step_to_frame_ratio = substeps
-        t0 = time.perf_counter()
-        ex.step()
-        wp.synchronize()
-        per = (time.perf_counter() - t0) / substeps
-        # neighbours per particle at the start (the example spaces particles one support apart)
-        x = ex.x.numpy()
-        from scipy.spatial import cKDTree
-
-        nb = cKDTree(x).query_pairs(sl * 0.999999, output_type="ndarray").shape[0] * 2 / ex.n
-        return {"particles": ex.n, "smoothing_length": sl, "s_per_substep": per,
-                "particle_steps_per_s": ex.n / per, "neighbours_per_particle_at_start": nb}
-
-
-def part_realtime(n_target, t_end):
-    import numpy as np
-
-    sim, dims = blobflow_dam_break(n_target)
-    sim.step(sim.max_step())  # compile outside the timing
-    sim2, _ = blobflow_dam_break(n_target)
-    worst = 0.0
-    mean_worst = 0.0
-    t0 = time.perf_counter()
-    steps = 0
-    frame = 1.0 / 60.0
-    t = 0.0
-    while t < t_end - 1e-12:
-        t = min(t + frame, t_end)
-        while sim2.state.time < t:
-            dt = min(sim2.max_step(), t - sim2.state.time)
-            sim2.step(dt)
-            steps += 1
-            worst = max(worst, sim2.density_error)
-            mean_worst = max(mean_worst, sim2.mean_density_error)
-    wall = time.perf_counter() - t0
-    blob = {"fluid_particles": sim2.state.n_points, "sim_time": t_end, "steps": steps,
-            "wall_s": wall, "wall_s_per_sim_s": wall / t_end,
-            "max_density_error": worst, "max_mean_density_error": mean_worst}
-    return blob
-
-
-def part_realtime_dfsph(n_target, t_end, max_error_percent=1.0):
-    with tempfile.TemporaryDirectory() as tmp:
-        scene = Path(tmp) / "dam.json"
-        splishsplash_scene(scene, n_target, 0.01, 4, 0.001, t_end, max_error=max_error_percent,
-                           cfl=True)
-        r = run_splishsplash(scene, 0)
-    r["wall_s_per_sim_s"] = r["wall_s"] / r["sim_time"]
-    r["maxError_percent"] = max_error_percent
-    return r
 
 
 # =============================================================================================
 # Orchestration.
 # =============================================================================================
-PARTS = {
-    "nsearch": lambda: part_nsearch(),
-    "nsearch_2threads": lambda: part_nsearch(compare_passes=False),
-    "memory": lambda: part_memory(),
-    "wcsph_blobflow_50k": lambda: part_wcsph_blobflow(50_000, DT, 30),
-    "wcsph_blobflow_200k": lambda: part_wcsph_blobflow(200_000, DT, 8),
-    "wcsph_blobflow_50k_noskin": lambda: part_wcsph_blobflow(50_000, DT, 30, skin=0.0),
-    "wcsph_blobflow_200k_noskin": lambda: part_wcsph_blobflow(200_000, DT, 8, skin=0.0),
-    "wcsph_splishsplash_50k": lambda: part_wcsph_splishsplash(50_000, DT, 30, STIFFNESS),
-    "wcsph_splishsplash_200k": lambda: part_wcsph_splishsplash(200_000, DT, 8, STIFFNESS),
-    "warp_50k": lambda: part_warp(50_000),
-    "realtime_blobflow": lambda: part_realtime(REALTIME_N, REALTIME_T),
-    "realtime_dfsph": lambda: part_realtime_dfsph(REALTIME_N, REALTIME_T),
-}
-#: The fixed time step of the particle-steps comparison (s): blobflow's CFL step for the
-#: 50k dam break with spacing 1 cm.
-DT = 1e-4
-#: Tait stiffness B = rho0 c^2 / 7 for SPlisHSPlasH, c as blobflow's default for the 50k column.
-STIFFNESS = None
-REALTIME_N = 10_000
-REALTIME_T = 0.1
+PARTS = {"nsearch": lambda: part_nsearch(), "nsearch_2threads": lambda: part_nsearch(False),
+         "memory_dfsph": lambda: part_memory("dfsph"), "memory_wcsph": lambda: part_memory("wcsph")}
+for _size in SIZES:
+    for _solver in ("dfsph", "wcsph"):
+        PARTS[f"persim_{_size}_blobflow_{_solver}"] = (
+            lambda s=_size, v=_solver: part_persim_blobflow(s, v))
+        PARTS[f"persim_{_size}_splishsplash_{_solver}"] = (
+            lambda s=_size, v=_solver: part_persim_splishsplash(s, v))
 
 
-def run_part(name, timeout=420):
+def run_part(name, timeout=3600):
     env = dict(os.environ)
-    threads = 2 if name.endswith("_2threads") else THREADS
+    threads = 2 if name.endswith("_2threads") else 1
     env.update(NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS=str(threads),
                OPENBLAS_NUM_THREADS="1")
-    if "splishsplash" in name or "dfsph" in name:
+    if "splishsplash" in name:
         env["LD_PRELOAD"] = GLDISPATCH
     t0 = time.perf_counter()
     try:
@@ -473,33 +480,24 @@ def run_part(name, timeout=420):
             result = json.loads(line[7:])
             result["part_wall_s"] = wall
             return result
-    tail = (proc.stdout + proc.stderr)[-1500:]
-    return {"error": f"exit {proc.returncode}", "tail": tail}
+    return {"error": f"exit {proc.returncode}", "tail": (proc.stdout + proc.stderr)[-1500:]}
 
 
 def main():
-    global STIFFNESS
-    import numpy as np
-
-    sys.path.insert(0, str(HERE.parent))
-    # blobflow's default speed of sound for the 50k column: 10 sqrt(2 g H).
-    na, nd, nh = dam_break_dims(50_000)
-    c = 10 * np.sqrt(2 * 9.81 * (nh * 0.01))
-    STIFFNESS = float(1000.0 * c * c / 7.0)
-    os.environ["BENCH_STIFFNESS"] = repr(STIFFNESS)
     results = {"machine": platform.processor() or platform.machine(), "cpus": os.cpu_count(),
-               "threads": THREADS, "fixed_dt_s": DT, "splishsplash_stiffness": STIFFNESS,
+               "threads": 1, "spacing_m": SPACING, "kinematic_viscosity_m2_s": NU,
+               "max_density_error": MAX_ERROR, "max_divergence_error": MAX_ERROR_V,
+               "sim_time_s": T_END,
                "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     only = sys.argv[1:] or list(PARTS)
     for name in only:
         print(f"--- {name}", flush=True)
         results[name] = run_part(name)
         print(json.dumps(results[name], indent=1), flush=True)
-    summary = summarise(results)
-    results["summary"] = summary
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     previous = json.loads(RESULTS.read_text()) if RESULTS.exists() and sys.argv[1:] else {}
     previous.update(results)
+    previous["summary"] = summarise(previous)
     RESULTS.write_text(json.dumps(previous, indent=1))
     print(table(previous))
 
@@ -514,85 +512,67 @@ def _get(d, *keys):
 
 def summarise(r):
     s = {}
-    for n in ("50k", "200k"):
-        a = _get(r, f"wcsph_blobflow_{n}", "particle_steps_per_s")
-        b = _get(r, f"wcsph_splishsplash_{n}", "particle_steps_per_s")
-        if a and b:
-            s[f"wcsph_ratio_vs_splishsplash_{n}"] = a / b
-    a = _get(r, "wcsph_blobflow_50k", "particle_steps_per_s")
-    w = _get(r, "warp_50k", "particle_steps_per_s")
-    if a and w:
-        s["wcsph_ratio_vs_warp_cpu_50k"] = a / w
-    a = _get(r, "realtime_blobflow", "wall_s_per_sim_s")
-    b = _get(r, "realtime_dfsph", "wall_s_per_sim_s")
-    if a and b:
-        s["wall_per_sim_s_ratio_dfsph_over_blobflow"] = b / a
-    for n in ("50k", "200k"):
-        a = _get(r, f"wcsph_blobflow_{n}_noskin", "particle_steps_per_s")
-        b = _get(r, f"wcsph_splishsplash_{n}", "particle_steps_per_s")
-        if a and b:
-            s[f"wcsph_noskin_ratio_vs_splishsplash_{n}"] = a / b
+    for size in SIZES:
+        ours = _get(r, f"persim_{size}_blobflow_dfsph", "wall_s_per_sim_s")
+        peer = _get(r, f"persim_{size}_splishsplash_dfsph", "wall_s_per_sim_s")
+        wc = _get(r, f"persim_{size}_blobflow_wcsph", "wall_s_per_sim_s")
+        pwc = _get(r, f"persim_{size}_splishsplash_wcsph", "wall_s_per_sim_s")
+        if ours and peer:
+            s[f"dfsph_speedup_vs_splishsplash_dfsph_{size}"] = peer / ours
+        if ours and wc:
+            s[f"dfsph_speedup_vs_blobflow_wcsph_{size}"] = wc / ours
+        if wc and pwc:
+            s[f"wcsph_speedup_vs_splishsplash_wcsph_{size}"] = pwc / wc
     for part in ("nsearch", "nsearch_2threads"):
         for n in ("100000", "1000000"):
             v = _get(r, part, n, "speedup_pairs_vs_ckdtree")
             if v:
                 s[f"{part}_speedup_{n}"] = v
-    m = _get(r, "memory", "peak_bytes_per_fluid_particle")
-    if m:
-        s["memory_bytes_per_particle_1M"] = m
+    for solver in ("dfsph", "wcsph"):
+        m = _get(r, f"memory_{solver}", "peak_bytes_per_fluid_particle")
+        if m:
+            s[f"memory_bytes_per_particle_1M_{solver}"] = m
     return s
 
 
 def table(r):
     s = r.get("summary", {})
     fmt = lambda v, f="{:.3g}": "n/a" if v is None else f.format(v)
-    rows = ["| measure | blobflow | peer | ratio (target) |", "|---|---|---|---|"]
-    for n in ("50k", "200k"):
-        a = _get(r, f"wcsph_blobflow_{n}")
-        b = _get(r, f"wcsph_splishsplash_{n}")
-        rows.append(
-            f"| WCSPH particle-steps/s, dam break {n} (fixed dt {r.get('fixed_dt_s')}) | "
-            f"{fmt(_get(a, 'particle_steps_per_s'))} ({_get(a, 'fluid_particles')} p) | "
-            f"SPlisHSPlasH WCSPH {fmt(_get(b, 'particle_steps_per_s'))} "
-            f"({_get(b, 'fluid_particles')} p) | "
-            f"{fmt(s.get(f'wcsph_ratio_vs_splishsplash_{n}'))} (>= 1.5) |")
-    for n in ("50k", "200k"):
-        a = _get(r, f"wcsph_blobflow_{n}_noskin")
-        rows.append(
-            f"| same, lists rebuilt every step (skin = 0) {n} | "
-            f"{fmt(_get(a, 'particle_steps_per_s'))} | SPlisHSPlasH WCSPH (as above) | "
-            f"{fmt(s.get(f'wcsph_noskin_ratio_vs_splishsplash_{n}'))} (>= 1.5) |")
-    w = _get(r, "warp_50k")
-    rows.append(f"| particle-steps/s vs Warp SPH example, CPU | "
-                f"{fmt(_get(r, 'wcsph_blobflow_50k', 'particle_steps_per_s'))} | "
-                f"Warp {fmt(_get(w, 'particle_steps_per_s'))} ({_get(w, 'particles')} p) | "
-                f"{fmt(s.get('wcsph_ratio_vs_warp_cpu_50k'))} (>= 1.0) |")
-    a = _get(r, "realtime_blobflow")
-    b = _get(r, "realtime_dfsph")
-    rows.append(f"| wall s per simulated s, dam break {_get(a, 'fluid_particles')} p, "
-                f"first {_get(a, 'sim_time')} s | {fmt(_get(a, 'wall_s_per_sim_s'))} "
-                f"(max density error {fmt(_get(a, 'max_density_error'))}) | "
-                f"SPlisHSPlasH DFSPH {fmt(_get(b, 'wall_s_per_sim_s'))} | "
-                f"{fmt(s.get('wall_per_sim_s_ratio_dfsph_over_blobflow'))} (>= 1.0) |")
+    pct = lambda v: "n/a" if v is None else f"{100 * v:.2f} %"
+    rows = ["| wall s per simulated s, dam break, 1 thread | particles | blobflow DFSPH | "
+            "SPlisHSPlasH DFSPH | blobflow WCSPH | SPlisHSPlasH WCSPH | DFSPH speed-up vs "
+            "SPlisHSPlasH DFSPH (>= 1.5) / vs blobflow WCSPH (>= 3) |", "|---|---|---|---|---|---|---|"]
+    for size in SIZES:
+        cells = []
+        for code, solver in (("blobflow", "dfsph"), ("splishsplash", "dfsph"),
+                             ("blobflow", "wcsph"), ("splishsplash", "wcsph")):
+            d = _get(r, f"persim_{size}_{code}_{solver}")
+            cells.append("n/a" if not d or "error" in d else
+                         f"{fmt(d['wall_s_per_sim_s'])} (mean/worst density error "
+                         f"{pct(d['worst_mean_density_error'])} / "
+                         f"{pct(d['worst_particle_density_error'])})")
+        n = _get(r, f"persim_{size}_blobflow_dfsph", "fluid_particles")
+        rows.append(f"| {size} | {n} | " + " | ".join(cells) + " | "
+                    f"{fmt(s.get(f'dfsph_speedup_vs_splishsplash_dfsph_{size}'))}x / "
+                    f"{fmt(s.get(f'dfsph_speedup_vs_blobflow_wcsph_{size}'))}x |")
     for part, n in [(p, n) for p in ("nsearch", "nsearch_2threads") for n in ("100000", "1000000")]:
         d = _get(r, part, n)
-        threads = 2 if part.endswith("2threads") else THREADS
-        rows.append(f"| neighbour pairs at r = 2 spacings, {n} points, {threads} thread(s) | "
-                    f"{fmt(_get(d, 'blobflow_grid_pairs_s'))} s "
-                    f"(full lists {fmt(_get(d, 'blobflow_grid_full_lists_s'))} s) | "
-                    f"cKDTree build + query_pairs {fmt(_get(d, 'ckdtree_build_plus_query_pairs_s'))} s | "
-                    f"{fmt(_get(d, 'speedup_pairs_vs_ckdtree'))} (>= 5) |")
-    m = _get(r, "memory")
-    rows.append(f"| peak memory per fluid particle, 1M dam break | "
-                f"{fmt(_get(m, 'peak_bytes_per_fluid_particle'), '{:.0f}')} B | - | (<= 1024 B) |")
+        threads = 2 if part.endswith("2threads") else 1
+        rows.append(f"| neighbour pairs at r = 2 spacings, {n} points, {threads} thread(s) | | "
+                    f"{fmt(_get(d, 'blobflow_grid_pairs_s'))} s | cKDTree "
+                    f"{fmt(_get(d, 'ckdtree_build_plus_query_pairs_s'))} s | | | "
+                    f"{fmt(_get(d, 'speedup_pairs_vs_ckdtree'))}x |")
+    for solver in ("dfsph", "wcsph"):
+        m = _get(r, f"memory_{solver}")
+        rows.append(f"| peak memory per fluid particle, 1M dam break, {solver} | "
+                    f"{_get(m, 'fluid_particles')} | "
+                    f"{fmt(_get(m, 'peak_bytes_per_fluid_particle'), '{:.0f}')} B | | | | |")
     return "\n".join(rows)
 
 
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "--part":
         sys.path.insert(0, str(HERE.parent))
-        if os.environ.get("BENCH_STIFFNESS"):
-            STIFFNESS = float(os.environ["BENCH_STIFFNESS"])
         result = PARTS[sys.argv[2]]()
         print("RESULT " + json.dumps(result), flush=True)
     else:
