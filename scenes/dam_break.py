@@ -21,7 +21,7 @@ SCENE_DURATION = 2.0
 
 
 def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length: float = 0.4,
-          depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.01,
+          depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.004,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
           solver: str = "dfsph", max_density_error: float = 0.001, cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
