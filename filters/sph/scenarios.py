@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from .boundary import box_boundary
-from .memory import check_memory
-from .sph import SPHLiquid, default_support_factor
-from .validation import check_range
+from ..boundary import box_boundary
+from ..memory import check_memory
+from .liquid import SPHLiquid, default_support_factor
+from ..validation import check_range
 
 __all__ = ["dam_break_liquid", "drop_liquid", "MAX_PARTICLES"]
 

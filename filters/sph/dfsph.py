@@ -57,7 +57,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .kernels import kernel_dw
+from ..kernels import kernel_dw
 
 __all__ = ["DFSPHSolver", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
            "DFSPH_MIN_NEIGHBOURS"]
