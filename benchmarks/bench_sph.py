@@ -61,7 +61,7 @@ def dam_break_dims(n_target):
 
 
 def blobflow_dam_break(n_target, spacing=0.01, **kw):
-    from filters.sph_scenarios import dam_break_liquid
+    from filters.sph.scenarios import dam_break_liquid
 
     na, nd, nh = dam_break_dims(n_target)
     sim = dam_break_liquid(column_width=na * spacing, column_height=nh * spacing,

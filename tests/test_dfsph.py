@@ -9,7 +9,7 @@ import pytest
 from filters import SimulationUnstableError, State
 from filters.boundary import box_boundary
 from filters.sph import SPHLiquid
-from filters.sph_scenarios import dam_break_liquid
+from filters.sph.scenarios import dam_break_liquid
 
 # Martin & Moyce (1952), "Part IV. An experimental study of the collapse of liquid columns on a
 # rigid horizontal plane", Phil. Trans. R. Soc. A 244, fig. 3, n^2 = 2 (column height 2a), the

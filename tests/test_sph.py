@@ -7,7 +7,7 @@ import pytest
 from filters import SimulationUnstableError, State
 from filters.boundary import box_boundary, lattice_volume, mesh_boundary
 from filters.sph import SPHLiquid
-from filters.sph_scenarios import dam_break_liquid, drop_liquid
+from filters.sph.scenarios import dam_break_liquid, drop_liquid
 
 
 def lattice(lo, hi, s):
@@ -165,7 +165,7 @@ def test_drop_scene_runs():
     (dict(spacing=1e-5), "particles"),
 ])
 def test_bad_parameters_raise_before_work(monkeypatch, kwargs, match):
-    import filters.sph_scenarios as scen
+    import filters.sph.scenarios as scen
 
     def no_work(*args, **kw):
         raise AssertionError("work started before validation")
