@@ -49,11 +49,11 @@ except ImportError:  # pragma: no cover
 
 import numba  # noqa: E402
 
-from filters import springs as springs_module  # noqa: E402
+from filters.elastic import springs as springs_module  # noqa: E402
 from filters.integrators import backward_euler, linearized_backward_euler  # noqa: E402
 from filters.simulation import State  # noqa: E402
-from filters.springs import SpringSystem  # noqa: E402
-from filters.topology import cloth_grid  # noqa: E402
+from filters.elastic.springs import SpringSystem  # noqa: E402
+from filters.elastic.topology import cloth_grid  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results" / "springs.json"
 

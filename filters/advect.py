@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit, prange
 
 from .fields import CurlNoiseVelocity, Field, field_point, field_point_jacobian, noise_variation
-from .noise import CurlNoise, pack_colliders, sdf_point
+from .noise.perlin import CurlNoise, pack_colliders, sdf_point
 from .simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
 from .validation import check_choice, check_finite_vector, check_int, check_range
 
@@ -246,7 +246,7 @@ class NoiseAdvection(Simulation):
     integrator : {"euler", "rk2", "rk4", "backward_euler"}
         Time integrator (see the module docstring).
     colliders : sequence of filters.noise.PlaneSDF / SphereSDF / InsideSphereSDF, or a
-        filters.colliders.Colliders (planes and spheres)
+        filters.elastic.contact.Colliders (planes and spheres)
         Solids the particles are pushed out of after each step (to ``collider_margin``).  Give
         the same colliders to a :class:`~filters.fields.CurlNoiseVelocity` with a
         ``ramp_distance`` to make the flow itself go around them.

@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from .noise import (
+from .noise.perlin import (
     MAX_OCTAVES,
     _DRIFT,
     _is_colliders_object,
@@ -653,7 +653,7 @@ class CurlNoiseVelocity(Field):
     time_scale : float
         Drift of the potentials (lattice cells per second).
     colliders : tuple of SDF primitives (filters.noise.PlaneSDF, SphereSDF, InsideSphereSDF),
-        or a filters.colliders.Colliders (planes and spheres)
+        or a filters.elastic.contact.Colliders (planes and spheres)
     ramp_distance : float
         Width of the boundary ramp (m), >= 0.
     base_velocity : sequence of 3 float

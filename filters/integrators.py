@@ -5,7 +5,7 @@ Every scheme has the same shape::
     info = scheme(system, state, h, **options)
 
 ``system`` supplies forces, energies and the implicit system matrix (see
-:class:`filters.springs.SpringSystem`, whose interface this module relies on: ``masses``,
+:class:`filters.elastic.springs.SpringSystem`, whose interface this module relies on: ``masses``,
 ``inv_mass``, ``pinned``, ``forces(x, v)``, ``conservative_forces(x)``,
 ``damping_forces(xdir, v)``, ``potential_energy(x)``, ``system_matrix(x, xdir, h)``).
 ``state`` is anything with ``positions`` and ``velocities`` (N, 3) float64 arrays (a
@@ -39,7 +39,7 @@ Linear solves
 -------------
 ``solver="pcg"``: preconditioned conjugate gradients in Numba, warm started from the previous
 step's solution. For systems that offer ``implicit_operator(x, xdir, h)`` (a
-:class:`filters.springs.SpringOperator`) the product is matrix-free (a symmetric 3x3 block, 6
+:class:`filters.elastic.springs.SpringOperator`) the product is matrix-free (a symmetric 3x3 block, 6
 numbers, per spring), with fused passes (``p`` update + product + ``p.Hp``; ``x``/``r`` update +
 ``|r|^2``) and a choice of per-particle block Jacobi, block symmetric Gauss-Seidel, or block SSOR
 with Eisenstat's (1981) trick, whose two sweeps replace the product with ``H`` (the default of
@@ -62,7 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from .springs import _operator_matvec
+from .elastic.springs import _operator_matvec
 from .validation import check_choice, check_int, check_range
 
 __all__ = [
@@ -282,7 +282,7 @@ def pcg(matrix, b, x0=None, *, tol=1e-6, max_iter=1000, block=None):
 
 
 # ---------------------------------------------------------------------------------------------
-# Matrix-free PCG on a spring operator (see filters.springs.SpringOperator)
+# Matrix-free PCG on a spring operator (see filters.elastic.springs.SpringOperator)
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _inv3(a, out, i):
@@ -940,7 +940,7 @@ def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditione
 
     Parameters
     ----------
-    operator : filters.springs.SpringOperator
+    operator : filters.elastic.springs.SpringOperator
         The SPD implicit system matrix (from ``SpringSystem.implicit_operator``), (3N, 3N).
     b : (N, 3) or (3N,) float64 array
         Right-hand side.

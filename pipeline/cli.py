@@ -203,7 +203,7 @@ def _fit_budget_to_memory(args, options: dict) -> None:
     workers have their own memory and keep the budget as given.
     """
     from filters.memory import MemoryLimitError, check_memory, format_bytes, memory_limit
-    from filters.sparse_grid import DEFAULT_MAX_BYTES
+    from filters.surface.grid import DEFAULT_MAX_BYTES
 
     if args.scheduler is not None:
         return

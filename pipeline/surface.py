@@ -7,7 +7,7 @@ two of them, and each passes time requests upstream (a temporal particle source 
 ``MetaballSplat``
     vtkPolyData particles -> vtkImageData (``sparse=False``) or a vtkPartitionedDataSet of
     image *bricks* (``sparse=True``, default) holding the implicit value ``implicit`` (negative
-    inside) computed by :mod:`filters.splat`. The particles' positions and chosen point arrays
+    inside) computed by :mod:`filters.surface.splat`. The particles' positions and chosen point arrays
     ride along as field data so that the contour can carry them to the surface.
 ``MarchingCubes``
     vtkFlyingEdges3D at ``value`` (0 for our fields). A brick set is contoured brick by brick in
@@ -46,10 +46,10 @@ from vtkmodules.vtkFiltersCore import (
 )
 
 from .algorithm import Algorithm
-from filters.sparse_grid import DEFAULT_MAX_BYTES, DenseField, SparseGrid
-from filters.mesh_smoothing import smooth_surface
-from filters.splat import KERNELS, interpolate_attributes, splat_dense, splat_sparse
-from filters.surface_mesh import piece_flags, stitch
+from filters.surface.grid import DEFAULT_MAX_BYTES, DenseField, SparseGrid
+from filters.surface.smoothing import smooth_surface
+from filters.surface.splat import KERNELS, interpolate_attributes, splat_dense, splat_sparse
+from filters.surface.mesh import piece_flags, stitch
 from filters.validation import check_bool, check_choice, check_int, check_range
 
 __all__ = [
@@ -101,7 +101,7 @@ class _Pieces:
 
     Vertices that another piece may share (on the piece's boundary planes) or that may
     coincide within the piece (all coordinates integral: a voxel exactly on the iso value) are
-    flagged; :func:`filters.surface_mesh.stitch` merges those by exact coordinates."""
+    flagged; :func:`filters.surface.mesh.stitch` merges those by exact coordinates."""
 
     def __init__(self):
         self.points, self.tris, self.lo, self.hi, self.starts = [], [], [], [], [0]
@@ -188,7 +188,7 @@ def contour_sparse(grid: SparseGrid, group: int = 4):
     Bricks of ``group ** 3`` blocks overlap their neighbours by one voxel layer; each is
     contoured in voxel-index coordinates, where a vertex on a shared face is computed from the
     same two voxel values by the same arithmetic in both bricks and so is bitwise equal; those
-    duplicates are merged exactly (:func:`filters.surface_mesh.stitch`).
+    duplicates are merged exactly (:func:`filters.surface.mesh.stitch`).
 
     Parameters
     ----------
@@ -289,9 +289,9 @@ class MetaballSplat(Algorithm):
     cell_size : float, optional
         Voxel edge (m); default ``radius / 2`` (splashsurf's cube size 0.5).
     kernel : {"blobby", "metaball", "sph", "zhu_bridson"}
-        See :mod:`filters.splat`.
+        See :mod:`filters.surface.splat`.
     support, iso, blobbiness
-        See :func:`filters.splat.splat_sparse`.
+        See :func:`filters.surface.splat.splat_sparse`.
     radius_array : str, optional
         Point array holding per-particle radii (m).
     sparse : bool
@@ -304,17 +304,17 @@ class MetaballSplat(Algorithm):
     max_bytes : int
         Memory budget (bytes) of the grid.
     implicit : callable, optional
-        A :mod:`filters.implicit` shape combined with the particle field by ``operation``.
+        A :mod:`filters.surface.csg` shape combined with the particle field by ``operation``.
     operation : {"union", "intersection", "difference"}
         How ``implicit`` combines with the particles' field.
     anisotropic : bool
         Splat ellipsoidal kernels stretched along the local particle distribution (Yu & Turk
-        2013, :mod:`filters.anisotropy`): flat water without bumps and sharper edges, about
+        2013, :mod:`filters.surface.anisotropy`): flat water without bumps and sharper edges, about
         1.35x the reconstruction time; drops of a few particles come out larger
         (``benchmarks/bench_anisotropy.py``). Kernels ``sph``,
         ``metaball`` and ``blobby``.
     anisotropy : dict, optional
-        Options of :func:`filters.anisotropy.anisotropic_kernels` (``stretch``,
+        Options of :func:`filters.surface.anisotropy.anisotropic_kernels` (``stretch``,
         ``min_neighbors``, ``smoothing``, ``neighbor_factor``, ``layer_band``, ``max_axis``,
         ``isotropy``).
     """
@@ -326,7 +326,7 @@ class MetaballSplat(Algorithm):
                  max_bytes: int = DEFAULT_MAX_BYTES, implicit=None,
                  operation: str = "intersection", anisotropic: bool = False,
                  anisotropy: dict | None = None):
-        from filters.splat_anisotropic import ANISOTROPIC_KERNELS
+        from filters.surface.ellipsoids import ANISOTROPIC_KERNELS
 
         self.anisotropic = check_bool("anisotropic", anisotropic)
         if self.anisotropic and kernel not in ANISOTROPIC_KERNELS:
@@ -364,7 +364,7 @@ class MetaballSplat(Algorithm):
     def _splat(self, sparse: bool):
         """The splatting function for the chosen grid and kernel shape."""
         if self.anisotropic:
-            from filters.splat_anisotropic import splat_dense_anisotropic, splat_sparse_anisotropic
+            from filters.surface.ellipsoids import splat_dense_anisotropic, splat_sparse_anisotropic
 
             return splat_sparse_anisotropic if sparse else splat_dense_anisotropic
         return splat_sparse if sparse else splat_dense
@@ -380,7 +380,7 @@ class MetaballSplat(Algorithm):
                                  f"the input")
             radius = numpy_support.vtk_to_numpy(arr).astype(np.float64).reshape(-1)
         if self.implicit is not None:
-            from filters.implicit import combine_dense, combine_sparse
+            from filters.surface.csg import combine_dense, combine_sparse
         if self.sparse:
             grid = self._splat(True)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
@@ -442,7 +442,7 @@ class MarchingCubes(Algorithm):
         Interpolate the particle arrays carried by :class:`MetaballSplat` onto the vertices.
     feature_smoothing : int
         Sweeps of feature-weighted Laplacian smoothing (Löschner et al. 2023,
-        :func:`filters.mesh_smoothing.smooth_surface`) applied to the contour before the
+        :func:`filters.surface.smoothing.smooth_surface`) applied to the contour before the
         attributes are interpolated, in [0, 10000]; 0 (default) leaves the contour as is. The
         weights come from the particles :class:`MetaballSplat` carries: flat liquid is smoothed
         fully, sheets and droplets of a few particles are left alone. Needs
@@ -622,7 +622,7 @@ def surface_stages(radius: float = 0.01, cell_size: float | None = None, *,
     cell_size : float, optional
         Voxel edge (m); default ``radius / 2``.
     kernel : str
-        Splatting kernel (see :mod:`filters.splat`).
+        Splatting kernel (see :mod:`filters.surface.splat`).
     smooth_iterations : int
         Windowed-sinc iterations; 0 leaves the marching-cubes mesh as is.
     pass_band : float

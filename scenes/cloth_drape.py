@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from filters.colliders import Colliders
-from filters.mass_spring import ClothSimulation
+from filters.elastic.contact import Colliders
+from filters.elastic.mass_spring import ClothSimulation
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

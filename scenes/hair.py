@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.colliders import Colliders
-from filters.mass_spring import HairSimulation
+from filters.elastic.contact import Colliders
+from filters.elastic.mass_spring import HairSimulation
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

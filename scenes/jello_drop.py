@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from filters.colliders import Colliders
-from filters.mass_spring import JelloSimulation
-from filters.topology import icosphere
+from filters.elastic.contact import Colliders
+from filters.elastic.mass_spring import JelloSimulation
+from filters.elastic.topology import icosphere
 from filters.validation import check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

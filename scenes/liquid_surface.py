@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from filters.implicit import Box
+from filters.surface.csg import Box
 from filters.validation import check_int
 from pipeline import Flow
 from pipeline.surface import surface_stages
@@ -29,10 +29,10 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
         Windowed-sinc iterations (0 to 10000).
     feature_smoothing : int
         Sweeps of feature-weighted Laplacian smoothing (Löschner et al. 2023,
-        :mod:`filters.mesh_smoothing`) before the windowed sinc (0 to 10000): flat water is
+        :mod:`filters.surface.smoothing`) before the windowed sinc (0 to 10000): flat water is
         smoothed fully, drops of a few particles and one-particle sheets are not moved.
     anisotropic : bool
-        Splat anisotropic kernels (Yu & Turk 2013, :mod:`filters.anisotropy`), 1.35x the
+        Splat anisotropic kernels (Yu & Turk 2013, :mod:`filters.surface.anisotropy`), 1.35x the
         reconstruction time of isotropic ones. On by default: through this function the flat
         top of a pool lies 0.011 / 0.020 / 0.021 spacings RMS from the true plane (jittered
         lattice / pools settled by ``SPHLiquid``, 20x20x8 and 40x40x10 particles), against

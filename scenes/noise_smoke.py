@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from filters.advect import INTEGRATORS, BoxEmitter, NoiseAdvection
 from filters.fields import CurlNoiseVelocity
-from filters.noise import PlaneSDF, SphereSDF
+from filters.noise.perlin import PlaneSDF, SphereSDF
 from filters.validation import check_choice, check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 
 from filters.advect import BoxEmitter, NoiseAdvection
 from filters.fields import CurlNoiseVelocity, NoiseWind, RigidRotation, Uniform
-from filters.noise import CurlNoise, PlaneSDF, SphereSDF
+from filters.noise.perlin import CurlNoise, PlaneSDF, SphereSDF
 from filters.simulation import State
 
 OMEGA = 2.0

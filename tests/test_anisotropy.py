@@ -1,4 +1,4 @@
-"""Anisotropic kernels (Yu & Turk 2013): filters.anisotropy and filters.splat_anisotropic."""
+"""Anisotropic kernels (Yu & Turk 2013): filters.surface.anisotropy and filters.surface.ellipsoids."""
 
 import math
 
@@ -6,17 +6,17 @@ import numba
 import numpy as np
 import pytest
 
-from filters.anisotropy import DEFAULTS, anisotropic_kernels, anisotropic_volumes, kernel_axes
-from filters.sparse_grid import DenseField, SparseGrid
-from filters.splat import lone_particle_radius, splat_dense, splat_sparse
-from filters.splat_anisotropic import (
+from filters.surface.anisotropy import DEFAULTS, anisotropic_kernels, anisotropic_volumes, kernel_axes
+from filters.surface.grid import DenseField, SparseGrid
+from filters.surface.splat import lone_particle_radius, splat_dense, splat_sparse
+from filters.surface.ellipsoids import (
     ANISOTROPIC_ISO,
     splat_dense_anisotropic,
     splat_ellipsoids_dense,
     splat_ellipsoids_sparse,
     splat_sparse_anisotropic,
 )
-from filters.surface_mesh import mesh_stats
+from filters.surface.mesh import mesh_stats
 from pipeline.surface import contour_dense, contour_sparse
 
 S = 0.02  # lattice spacing (m)
@@ -322,7 +322,7 @@ def test_metaball_splat_stage_exposes_anisotropic_kernels():
 
 
 def test_anisotropic_volumes_of_a_lattice_and_a_lone_particle():
-    from filters.anisotropy import anisotropic_volumes
+    from filters.surface.anisotropy import anisotropic_volumes
 
     x, _ = _lattice((9, 9, 9))
     G = np.repeat((np.eye(3) / H)[None], len(x), axis=0)

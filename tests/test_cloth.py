@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from filters.colliders import Colliders
-from filters.mass_spring import ClothSimulation, HairSimulation, JelloSimulation
+from filters.elastic.contact import Colliders
+from filters.elastic.mass_spring import ClothSimulation, HairSimulation, JelloSimulation
 from filters.simulation import SimulationUnstableError, State
-from filters.topology import (BEND, SHEAR, STRETCH, cloth_from_mesh, cloth_grid, hair_strands,
+from filters.elastic.topology import (BEND, SHEAR, STRETCH, cloth_from_mesh, cloth_grid, hair_strands,
                               icosphere, jello_from_mesh, mesh_volume)
 
 # The stiff-cloth case of the issue, with NVIDIA Warp's cloth-example scales: 0.1 m cells and

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from filters.colliders import Colliders, resolve_particle, union_sdf
+from filters.elastic.contact import Colliders, resolve_particle, union_sdf
 
 
 def test_signed_distances_and_normals():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from filters import SimulationUnstableError, State
-from filters.boundary import box_boundary
+from filters.sph.boundary import box_boundary
 from filters.sph import SPHLiquid
 from filters.sph.scenarios import dam_break_liquid
 

@@ -20,7 +20,7 @@ from filters.fields import (
     field_point_jacobian,
     noise_variation,
 )
-from filters.noise import CurlNoise, PlaneSDF, SphereSDF, fbm3
+from filters.noise.perlin import CurlNoise, PlaneSDF, SphereSDF, fbm3
 
 RNG = np.random.default_rng(2024)
 PTS = RNG.uniform(-1.5, 1.5, (200, 3))

@@ -8,8 +8,8 @@ import pytest
 from filters.integrators import (backward_euler, forward_euler, implicit_advection, integrate,
                                  pcg, solve_linear, symplectic_euler)
 from filters.simulation import State
-from filters.springs import SpringSystem
-from filters.topology import cloth_grid
+from filters.elastic.springs import SpringSystem
+from filters.elastic.topology import cloth_grid
 
 
 def _oscillator(k=1.0, m=1.0, c=0.0, x0=1.0):

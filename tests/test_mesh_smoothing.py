@@ -1,16 +1,16 @@
-"""Feature-weighted Laplacian smoothing (filters.mesh_smoothing)."""
+"""Feature-weighted Laplacian smoothing (filters.surface.smoothing)."""
 
 import numpy as np
 import pytest
 
-from filters.mesh_smoothing import (
+from filters.surface.smoothing import (
     feature_weights,
     smooth_surface,
     vertex_neighbors,
     weighted_laplacian,
 )
-from filters.splat import splat_sparse
-from filters.surface_mesh import mesh_stats
+from filters.surface.splat import splat_sparse
+from filters.surface.mesh import mesh_stats
 from pipeline.surface import contour_sparse
 
 S = 0.02  # lattice spacing (m)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from filters.noise import (
+from filters.noise.perlin import (
     PERMUTATION,
     CurlNoise,
     InsideSphereSDF,
@@ -34,7 +34,7 @@ def test_reference_check_value_is_exact():
 
 
 def test_gradient_table_is_perlins_grad_function():
-    from filters.noise import GRADIENTS
+    from filters.noise.perlin import GRADIENTS
 
     def reference_grad(h, x, y, z):  # Perlin 2002, transcribed branch by branch
         h &= 15
@@ -303,7 +303,7 @@ def test_curl_noise_function_and_validation():
 def test_vectorised_array_paths_equal_the_point_kernels_bitwise():
     # The array functions evaluate octave by octave in blocks (so the loops vectorise); the
     # point kernels that fields and simulations call from Numba must give the same bits.
-    from filters.noise import _kernel_table, _tables, curl_point, fbm_value, fbm_value_grad
+    from filters.noise.perlin import _kernel_table, _tables, curl_point, fbm_value, fbm_value_grad
 
     pts = RNG.uniform(-6.0, 6.0, (60, 3))
     kwargs = dict(octaves=4, lacunarity=2.2, gain=0.45, frequency=0.9)
@@ -328,7 +328,7 @@ def test_vectorised_array_paths_equal_the_point_kernels_bitwise():
 
 
 def test_colliders_module_objects_are_accepted():
-    from filters.colliders import Colliders
+    from filters.elastic.contact import Colliders
 
     theirs = Colliders().add_plane((0, 0, -1.0), (0, 0, 2.0)).add_sphere((0.2, 0, 0), 0.5)
     theirs.add_sphere((0, 0, 0), 4.0, inside=True)

@@ -1,11 +1,11 @@
-"""Tests of filters.sph (WCSPH), filters.boundary and filters.sph_scenarios."""
+"""Tests of filters.sph (WCSPH), filters.sph.boundary and filters.sph_scenarios."""
 
 
 import numpy as np
 import pytest
 
 from filters import SimulationUnstableError, State
-from filters.boundary import box_boundary, lattice_volume, mesh_boundary
+from filters.sph.boundary import box_boundary, lattice_volume, mesh_boundary
 from filters.sph import SPHLiquid
 from filters.sph.scenarios import dam_break_liquid, drop_liquid
 

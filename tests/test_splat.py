@@ -1,4 +1,4 @@
-"""filters.splat / sparse_grid / implicit / surface_mesh on arrays (no VTK)."""
+"""filters.surface.splat / sparse_grid / implicit / surface_mesh on arrays (no VTK)."""
 
 import math
 
@@ -6,16 +6,16 @@ import numba
 import numpy as np
 import pytest
 
-from filters.implicit import Box, Plane, Sphere, combine_dense, combine_sparse
-from filters.sparse_grid import GridTooLargeError
-from filters.splat import (
+from filters.surface.csg import Box, Plane, Sphere, combine_dense, combine_sparse
+from filters.surface.grid import GridTooLargeError
+from filters.surface.splat import (
     KERNELS,
     interpolate_attributes,
     lone_particle_radius,
     splat_dense,
     splat_sparse,
 )
-from filters.surface_mesh import merge_coincident, mesh_stats
+from filters.surface.mesh import merge_coincident, mesh_stats
 
 
 def _cloud(n=600, seed=1):
@@ -265,7 +265,7 @@ def test_points_beyond_the_block_keys_are_refused_up_front(splat, spread):
 
 
 def test_budget_message_gives_sizes_in_sensible_units():
-    from filters.sparse_grid import check_budget, format_bytes
+    from filters.surface.grid import check_budget, format_bytes
 
     # Before: "needs 0.0 MiB, above max_bytes = 0.0 MiB"
     with pytest.raises(GridTooLargeError) as info:

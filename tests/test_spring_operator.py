@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from filters.colliders import Colliders
+from filters.elastic.contact import Colliders
 from filters.integrators import backward_euler, pcg_operator, solve_linear
 from filters.simulation import State
-from filters.springs import SpringSystem
-from filters.topology import cloth_grid
+from filters.elastic.springs import SpringSystem
+from filters.elastic.topology import cloth_grid
 
 
 def _system(mode, damping, drag=0.0, colliders=None, zero_rest=False):

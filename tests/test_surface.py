@@ -11,8 +11,8 @@ from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkPolyData
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 
 from filters import BallisticParticles
-from filters.splat import lone_particle_radius, splat_dense, splat_sparse
-from filters.surface_mesh import mesh_stats
+from filters.surface.splat import lone_particle_radius, splat_dense, splat_sparse
+from filters.surface.mesh import mesh_stats
 from pipeline import SimulationSource
 from pipeline.algorithm import raise_pending
 from pipeline.surface import (
@@ -243,7 +243,7 @@ def test_per_particle_radius_and_container_clip():
         d = np.linalg.norm(pts[near] - centre, axis=1)
         assert d.mean() == pytest.approx(lone_particle_radius("sph", radius), rel=0.01)
     # liquid ball clipped by the inside of a tank whose lid is at z = 0.05
-    from filters.implicit import Box
+    from filters.surface.csg import Box
     ball = _lattice_in(lambda g: np.linalg.norm(g, axis=1) < 0.1, 0.1)
     tank = Box((-1.0, -1.0, -1.0), (1.0, 1.0, 0.05))
     for sparse in (True, False):
@@ -275,7 +275,7 @@ def test_feature_smoothing_flattens_a_pool_and_keeps_the_mesh_valid():
            & (p0[:, 2] > 3.5 * S))
     assert top.sum() > 200
     assert p1[top, 2].std() < 0.6 * p0[top, 2].std()
-    from filters.mesh_smoothing import smooth_surface
+    from filters.surface.smoothing import smooth_surface
 
     expected = smooth_surface(p0.astype(np.float64), t0, x, 0.01, iterations=25)
     np.testing.assert_allclose(p1, expected, atol=1e-7)

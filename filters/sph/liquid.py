@@ -50,7 +50,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from ..boundary import BoundaryParticles, lattice_volume
+from .boundary import BoundaryParticles, lattice_volume
 from .dfsph import DFSPHSolver
 from ..kernels import cohesion_c, kernel_dw, kernel_id, kernel_w
 from ..neighbors import _counting_sort, _grid_keys, bounds, grid_query_padded

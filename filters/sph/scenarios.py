@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..boundary import box_boundary
+from .boundary import box_boundary
 from ..memory import check_memory
 from .liquid import SPHLiquid, default_support_factor
 from ..validation import check_range

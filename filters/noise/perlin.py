@@ -71,7 +71,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit, prange
 
-from .validation import check_finite, check_finite_vector, check_int, check_points, check_range
+from ..validation import check_finite, check_finite_vector, check_int, check_points, check_range
 
 __all__ = [
     "PERMUTATION",
@@ -730,7 +730,7 @@ def _is_colliders_object(obj) -> bool:
 
 
 def _rows_from_colliders_object(obj) -> list:
-    """Rows for the planes and spheres of a :class:`filters.colliders.Colliders`."""
+    """Rows for the planes and spheres of a :class:`filters.elastic.contact.Colliders`."""
     planes = np.asarray(obj.planes, dtype=np.float64).reshape(-1, 6)
     spheres = np.asarray(obj.spheres, dtype=np.float64).reshape(-1, 7)
     boxes = np.asarray(obj.boxes, dtype=np.float64).reshape(-1, 9)
@@ -752,9 +752,9 @@ def pack_colliders(colliders) -> np.ndarray:
 
     Parameters
     ----------
-    colliders : sequence, array or filters.colliders.Colliders
+    colliders : sequence, array or filters.elastic.contact.Colliders
         PlaneSDF, SphereSDF or InsideSphereSDF objects, or a
-        :class:`filters.colliders.Colliders` (its planes and spheres; anything with ``planes``
+        :class:`filters.elastic.contact.Colliders` (its planes and spheres; anything with ``planes``
         (P, 6), ``spheres`` (S, 7) and ``boxes`` (B, 9) arrays in that module's layout), or a
         sequence mixing both, or an already packed ``(C, 8)`` array.  Boxes are refused: their
         signed distance has no continuous Hessian, which the curl-noise ramp differentiates.
@@ -779,7 +779,7 @@ def pack_colliders(colliders) -> np.ndarray:
             else:
                 raise TypeError(
                     f"colliders[{i}] must be a PlaneSDF, SphereSDF, InsideSphereSDF or a "
-                    f"filters.colliders.Colliders, got {type(c).__name__}")
+                    f"filters.elastic.contact.Colliders, got {type(c).__name__}")
         packed = np.array(rows, dtype=np.float64).reshape(-1, 8)
     packed.setflags(write=False)
     return packed
@@ -1402,7 +1402,7 @@ class CurlNoise:
         Seed of the first potential.
     time_scale : float
         Drift of the potentials (lattice cells per second); 0 for a steady field.
-    colliders : tuple of PlaneSDF / SphereSDF / InsideSphereSDF, or filters.colliders.Colliders
+    colliders : tuple of PlaneSDF / SphereSDF / InsideSphereSDF, or filters.elastic.contact.Colliders
         Surfaces the flow must not cross (see :func:`pack_colliders`).
     ramp_distance : float
         Width of the boundary ramp (m), >= 0; 0 disables the ramp.

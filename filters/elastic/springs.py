@@ -35,7 +35,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .validation import check_choice, check_finite_vector, check_points, check_range
+from ..validation import check_choice, check_finite_vector, check_points, check_range
 
 __all__ = [
     "DAMPING_MODES",
@@ -730,7 +730,7 @@ class SpringSystem:
         Gravitational acceleration (m/s^2).
     pinned : (N,) bool array_like, optional
         Particles held fixed.
-    colliders : filters.colliders.Colliders, optional
+    colliders : filters.elastic.contact.Colliders, optional
         Obstacles handled *inside* the forces, energy and system matrix by a penalty
         ``contact_stiffness/2 min(phi - thickness, 0)^2`` (for implicit schemes, whose solve then
         sees the contacts; a projection after a large implicit step would inject elastic energy).
@@ -789,7 +789,7 @@ class SpringSystem:
 
     def _contacts(self, x):
         """Penalty contact energy (J); fills contact forces, Hessian blocks and friction."""
-        from .colliders import contact_penalty
+        from .contact import contact_penalty
 
         c = self.colliders
         with _threads(x.shape[0]):
@@ -801,7 +801,7 @@ class SpringSystem:
         """Coulomb friction of the penalty contacts at ``x`` on velocities ``v`` (in place)."""
         if self.colliders is None:
             return
-        from .colliders import penalty_friction
+        from .contact import penalty_friction
 
         self._contacts(x)
         with _threads(x.shape[0]):
@@ -869,7 +869,7 @@ class SpringSystem:
         Below :data:`PARALLEL_MIN_SPRINGS_EXPLICIT` springs a serial kernel scatters the forces
         directly; above, a parallel kernel computes them per spring and gathers them per
         particle (no atomics, no races).  Contacts are not included (see
-        :meth:`filters.colliders.Colliders.resolve`).
+        :meth:`filters.elastic.contact.Colliders.resolve`).
         """
         if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS_EXPLICIT:
             if self._f_scratch is None:

@@ -1,6 +1,6 @@
 """Triangle-mesh utilities on arrays: stitching coincident points and checking watertightness.
 
-Used to stitch the pieces contoured from the bricks of a :class:`filters.sparse_grid.SparseGrid`
+Used to stitch the pieces contoured from the bricks of a :class:`filters.surface.grid.SparseGrid`
 (their shared vertices are bitwise equal, so they are merged by exact coordinates) and to
 measure meshes in tests and benchmarks (area, enclosed volume, closed, manifold, Euler
 characteristic, connected components).
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .sparse_grid import _EMPTY, _probe
+from .grid import _EMPTY, _probe
 
 __all__ = ["merge_coincident", "piece_flags", "stitch", "MeshStats", "mesh_stats"]
 

@@ -53,7 +53,7 @@ import numbers
 import numpy as np
 from numba import njit, prange
 
-from .sparse_grid import (
+from .grid import (
     BLOCK_LIMIT,
     DEFAULT_MAX_BYTES,
     DenseField,
@@ -69,7 +69,7 @@ from .sparse_grid import (
     lookup,
     unpack_keys,
 )
-from .validation import check_choice, check_int, check_points, check_range
+from ..validation import check_choice, check_int, check_points, check_range
 
 __all__ = [
     "KERNELS",
@@ -855,7 +855,7 @@ def splat_sparse(positions, radius, cell_size, *, kernel: str = "sph", support=N
         Particle centres (m). NaN or infinite values raise ValueError, and so do points
         whose blocks the 64-bit block keys cannot hold (21 bits per axis: within about
         ``2**20 * block_size * cell_size`` of the origin, 42 km at 8 voxels of 5 mm; see
-        :func:`filters.sparse_grid.check_block_range`). Far-apart clusters inside that range
+        :func:`filters.surface.grid.check_block_range`). Far-apart clusters inside that range
         are splatted in full: the grid holds only the blocks near each.
     radius : float or (N,) float64
         Particle radii ``r`` (m), > 0.

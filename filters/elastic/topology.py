@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .memory import check_memory
-from .validation import check_finite_vector, check_int, check_points, check_range
+from ..memory import check_memory
+from ..validation import check_finite_vector, check_int, check_points, check_range
 
 __all__ = [
     "STRETCH",

@@ -5,7 +5,7 @@ positive outside, and 1-Lipschitz (exact for the primitives, a bound for the CSG
 CSG follows Ricci (1973): union = min, intersection = max, difference ``a - b = max(a, -b)``;
 the operators ``|``, ``&`` and ``-`` build them.
 
-The shapes combine with a particle field from :mod:`filters.splat` (``combine_dense``,
+The shapes combine with a particle field from :mod:`filters.surface.splat` (``combine_dense``,
 ``combine_sparse``), e.g. the liquid clipped by the inside of a container
 (``operation="intersection"``) or a liquid merged with a solid blob (``"union"``). The shape's
 distance is scaled into the units of the field (``1 / support`` radius for the summed kernels,
@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .sparse_grid import (
+from .grid import (
     DenseField,
     SparseGrid,
     check_budget,
@@ -30,7 +30,7 @@ from .sparse_grid import (
     unpack_keys,
     DEFAULT_MAX_BYTES,
 )
-from .validation import check_choice, check_finite_vector, check_points, check_range
+from ..validation import check_choice, check_finite_vector, check_points, check_range
 
 __all__ = [
     "Implicit",

@@ -39,8 +39,8 @@ import numpy as np
 from numba import njit, prange
 
 from .anisotropy import _cell_sort, _fitting_cells
-from .topology import check_triangles
-from .validation import check_int, check_points, check_range
+from ..elastic.topology import check_triangles
+from ..validation import check_int, check_points, check_range
 
 __all__ = ["vertex_neighbors", "feature_weights", "weighted_laplacian", "smooth_surface"]
 

@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .validation import check_finite_vector, check_points, check_range
+from ..validation import check_finite_vector, check_points, check_range
 
 __all__ = ["Colliders", "union_sdf", "resolve_particle", "resolve_contacts"]
 

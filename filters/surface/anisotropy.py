@@ -32,7 +32,7 @@ neighbourhood gets *exactly* the isotropic kernel. A cap keeps the longest semi-
 neighbourhoods at the liquid's edges, which would reach ``k_r^(2/3)``, are scaled down), so the
 splat's reach stays close to the isotropic one. Isolated particles get ``G_i = I / h_i`` (Yu &
 Turk shrink them by ``k_n``; we keep the isotropic kernel, so a lone droplet has the radius
-:func:`filters.splat.lone_particle_radius` predicts).
+:func:`filters.surface.splat.lone_particle_radius` predicts).
 
 Stretch. ``k_r = 2`` rather than Yu & Turk's 4: with volume-keeping ellipsoids the top layer's
 kernels at ``k_r = 4`` are so thin across the surface (0.4 h) that the field falls off within
@@ -64,7 +64,7 @@ volumes and the full lateral move: 0.022 / 0.037 / 0.031; pysplashsurf raw 0.042
 0.033). 4 spacings flatten further (0.013 / 0.024 / 0.022) for 1.55x instead of 1.42x the
 isotropic reconstruction's time. Lattice balls (no jitter) of radius 4 to 7 spacings keep
 their volume within 1.1 %; small clusters come out larger, as the calibrated iso is low
-(:data:`filters.splat_anisotropic.ANISOTROPIC_ISO`): radius 3 spacings (93 particles) +18 %,
+(:data:`filters.surface.ellipsoids.ANISOTROPIC_ISO`): radius 3 spacings (93 particles) +18 %,
 clusters of 3 x 3 x 3 / 2 x 2 x 2 / 2 x 2 x 1 particles -4 / +14 / +68 % (the earlier defaults
 +8 / 0 / -6 / +28 %; the isotropic kernel +0.5 / -6 / -11 / -4 %; measured).
 
@@ -91,8 +91,8 @@ import numbers
 import numpy as np
 from numba import njit, prange
 
-from .neighbors import NeighborSearch
-from .validation import check_choice, check_int, check_points, check_range
+from ..neighbors import NeighborSearch
+from ..validation import check_choice, check_int, check_points, check_range
 
 __all__ = ["anisotropic_kernels", "anisotropic_volumes", "kernel_axes", "DEFAULTS"]
 
@@ -660,7 +660,7 @@ def anisotropic_volumes(centres, G, masses=None, *, only=None):
     (measured with a neighbourhood of 3 spacings; ``benchmarks/bench_anisotropy.py``).
     Top-layer kernels of a flat surface get ``V = 0.82 s^3`` here against ``1.18 s^3`` from the
     isotropic density, which is why the anisotropic field has its own iso
-    (:data:`filters.splat_anisotropic.ANISOTROPIC_ISO`). The splat computes these volumes for
+    (:data:`filters.surface.ellipsoids.ANISOTROPIC_ISO`). The splat computes these volumes for
     the ellipsoids only (``only``); the spherical kernels inside the liquid keep their
     isotropic SPH volumes, which is the same to sampling noise and 3x cheaper at 100k.
 
@@ -793,7 +793,7 @@ def anisotropic_kernels(positions, radius, *, support: float = 4.0,
         Particle radii ``r`` (m), > 0.
     support : float
         Kernel support radius over particle radius, ``h = support * r`` (as in
-        :func:`filters.splat.splat_sparse`; 4 for the ``sph`` kernel), in (0, 1000].
+        :func:`filters.surface.splat.splat_sparse`; 4 for the ``sph`` kernel), in (0, 1000].
     neighbor_factor : float
         Neighbourhood radius for the covariance and the smoothing over the *particle spacing*
         ``2 r``: ``r_i = neighbor_factor * 2 r_i`` (m), in [1, 10]. The default 3.5 holds about

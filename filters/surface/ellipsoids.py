@@ -1,25 +1,25 @@
 """Splatting ellipsoidal (anisotropic) kernels onto the sparse / dense voxel grids, in Numba.
 
 Particle ``j`` with kernel centre ``c_j`` (m), kernel matrix ``G_j`` (symmetric, 1/m; see
-:func:`filters.anisotropy.anisotropic_kernels`) and amplitude ``a_j`` adds
+:func:`filters.surface.anisotropy.anisotropic_kernels`) and amplitude ``a_j`` adds
 
     ``a_j K(|G_j (x - c_j)|^2)``
 
-to the field, with ``K`` one of the unit-support kernels of :mod:`filters.splat` as a function
+to the field, with ``K`` one of the unit-support kernels of :mod:`filters.surface.splat` as a function
 of ``q^2`` (peak 1): ``sph`` (Monaghan's cubic spline), ``metaball`` (Wyvill et al. 1986) or
 ``blobby`` (Blinn 1982). This is Yu & Turk's (2013) anisotropic kernel ``W(r, G) = sigma det(G)
 P(|G r|)``: the ``det(G)`` and the normalisation ``sigma`` live in ``a_j``. For the ``sph``
 kernel :func:`splat_sparse_anisotropic` uses ``a_j = V_j (8 / pi) det(G_j)`` with the SPH
 volume ``V_j`` (m^3, voxel units inside; for ellipsoids under the ellipsoidal kernels
-themselves, :func:`filters.anisotropy.anisotropic_volumes`), i.e. the SPH colour field
+themselves, :func:`filters.surface.anisotropy.anisotropic_volumes`), i.e. the SPH colour field
 ``sum_j V_j W_j(x)``, which is about 1 inside the liquid; for the other kernels
-``a_j = det(G_j) h_j^3`` (1 for the volume-keeping matrices of :mod:`filters.anisotropy`, more
+``a_j = det(G_j) h_j^3`` (1 for the volume-keeping matrices of :mod:`filters.surface.anisotropy`, more
 where their long axis is capped), which keeps each particle's integral that of the isotropic
 kernel.
 
-The output is the same as :func:`filters.splat.splat_sparse` / :func:`filters.splat.splat_dense`:
-an implicit value ``g = iso - f`` (negative inside) on a :class:`filters.sparse_grid.SparseGrid`
-or :class:`filters.sparse_grid.DenseField`, so :func:`pipeline.surface.contour_sparse` /
+The output is the same as :func:`filters.surface.splat.splat_sparse` / :func:`filters.surface.splat.splat_dense`:
+an implicit value ``g = iso - f`` (negative inside) on a :class:`filters.surface.grid.SparseGrid`
+or :class:`filters.surface.grid.DenseField`, so :func:`pipeline.surface.contour_sparse` /
 :func:`pipeline.surface.contour_dense` and ``MarchingCubes`` contour it unchanged.
 
 Evaluation. The quadratic form along a voxel row ``(y, z)`` is a parabola in ``e = x - c_x``:
@@ -33,7 +33,7 @@ parabola's vertex clamped to the row, written always and counted only if kept: n
 each voxel then sums a branch-free, vectorisable loop -- the same cost per contribution as
 the isotropic splat (about 19 contributions per voxel row for both on a 100k block).
 
-Determinism and sparsity follow :mod:`filters.splat`: particles binned by block with a serial
+Determinism and sparsity follow :mod:`filters.surface.splat`: particles binned by block with a serial
 counting sort, every voxel written by one task summing in a fixed order (bitwise identical for
 any thread count), only blocks that particles can reach considered; outside blocks rejected by
 an upper bound of the field (``K <= 1`` and ``|G r|^2 >= |r|^2 / S^2`` with ``S`` the longest
@@ -50,7 +50,7 @@ from numba import njit, prange
 
 from .anisotropy import DEFAULTS as ANISO_DEFAULTS
 from .anisotropy import _kernels, _radii, _volumes
-from .sparse_grid import (
+from .grid import (
     _EMPTY,
     DEFAULT_MAX_BYTES,
     DenseField,
@@ -67,7 +67,7 @@ from .sparse_grid import (
 )
 from .splat import DEFAULTS as SPLAT_DEFAULTS
 from .splat import _counting_sort, _home_keys, _row_kernel, evaluate_rounds
-from .validation import check_choice, check_int, check_points, check_range
+from ..validation import check_choice, check_int, check_points, check_range
 
 __all__ = [
     "ANISOTROPIC_KERNELS",
@@ -78,7 +78,7 @@ __all__ = [
     "splat_dense_anisotropic",
 ]
 
-#: Kernels the ellipsoid splatter supports (ids as in :mod:`filters.splat`).
+#: Kernels the ellipsoid splatter supports (ids as in :mod:`filters.surface.splat`).
 ANISOTROPIC_KERNELS = ("blobby", "metaball", "sph")
 _KID = {"blobby": 0, "metaball": 1, "sph": 2}
 
@@ -87,9 +87,9 @@ _KID = {"blobby": 0, "metaball": 1, "sph": 2}
 #: true plane, half a spacing above the top layer: measured offset +0.0000 spacings (0.01 in
 #: the iso moves it by about 0.01 spacings). Lattice balls of radius 4, 5, 6 and 7 spacings then
 #: keep their volume within -1.1 %, -0.1 %, -0.3 % and -0.3 %; small clusters come out larger
-#: (see :mod:`filters.anisotropy`). Lower than the isotropic kernel's 0.6 because the flattened
+#: (see :mod:`filters.surface.anisotropy`). Lower than the isotropic kernel's 0.6 because the flattened
 #: top-layer kernels overlap within their layer, so their volumes
-#: (:func:`filters.anisotropy.anisotropic_volumes`: 0.82 s^3 on a flat surface, against 1.18 s^3
+#: (:func:`filters.surface.anisotropy.anisotropic_volumes`: 0.82 s^3 on a flat surface, against 1.18 s^3
 #: from the isotropic density) are small and the field half a spacing above the top layer is
 #: weak. ``metaball`` and ``blobby`` keep the isotropic kernels' 0.5 (not calibrated).
 ANISOTROPIC_ISO = {"sph": 0.367, "metaball": 0.5, "blobby": 0.5}
@@ -537,7 +537,7 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
     ----------
     centres : (N, 3) float64
         Kernel centres ``c_j`` (m), within the block keys' range (about ``2**20 * block_size
-        * cell_size`` of the origin; :func:`filters.sparse_grid.check_block_range`), else
+        * cell_size`` of the origin; :func:`filters.surface.grid.check_block_range`), else
         ValueError.
     G : (N, 3, 3) float64
         Symmetric positive-definite kernel matrices (1/m): the kernel of particle ``j`` is
@@ -547,7 +547,7 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
     cell_size : float
         Voxel edge (m), > 0.
     kernel : {"blobby", "metaball", "sph"}
-        Kernel profile ``K`` (see :mod:`filters.splat`).
+        Kernel profile ``K`` (see :mod:`filters.surface.splat`).
     iso : float, optional
         Iso value of the summed field (default :data:`ANISOTROPIC_ISO`), > 0.
     block_size : int
@@ -557,12 +557,12 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
     skip_interior : bool
         Skip blocks that coarse samples show to be deep inside.
     max_bytes : int
-        Memory budget (bytes); :class:`filters.sparse_grid.GridTooLargeError` above it.
+        Memory budget (bytes); :class:`filters.surface.grid.GridTooLargeError` above it.
 
     Returns
     -------
     SparseGrid
-        Implicit values ``iso - f`` (negative inside), as :func:`filters.splat.splat_sparse`.
+        Implicit values ``iso - f`` (negative inside), as :func:`filters.surface.splat.splat_sparse`.
     """
     return _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
                  max_bytes, skip_interior, False)
@@ -572,7 +572,7 @@ def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "s
                            block_size: int = 8, blobbiness: float = 4.0,
                            max_bytes: int = DEFAULT_MAX_BYTES) -> DenseField:
     """Like :func:`splat_ellipsoids_sparse` but every reachable voxel evaluated, returned as a
-    dense box (:class:`filters.sparse_grid.DenseField`) covering the evaluated blocks plus one
+    dense box (:class:`filters.surface.grid.DenseField`) covering the evaluated blocks plus one
     outside voxel layer; voxels no kernel reaches hold ``iso``."""
     centres = check_points("centres", centres)
     if centres.shape[0]:
@@ -649,15 +649,15 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
                              isotropy: float = ANISO_DEFAULTS["isotropy"]) -> SparseGrid:
     """Particles -> implicit field with anisotropic kernels (Yu & Turk 2013), sparse grid.
 
-    A drop-in for :func:`filters.splat.splat_sparse` (same first parameters, same output):
-    :func:`filters.anisotropy.anisotropic_kernels` gives smoothed centres and kernel matrices
+    A drop-in for :func:`filters.surface.splat.splat_sparse` (same first parameters, same output):
+    :func:`filters.surface.anisotropy.anisotropic_kernels` gives smoothed centres and kernel matrices
     (support ``h = support * r``), then :func:`splat_ellipsoids_sparse` splats them.
 
     Parameters
     ----------
     positions : (N, 3) float64
         Particle centres (m); points the block keys cannot hold (as in
-        :func:`filters.splat.splat_sparse`) raise ValueError before any kernel is computed.
+        :func:`filters.surface.splat.splat_sparse`) raise ValueError before any kernel is computed.
     radius : float or (N,) float64
         Particle radii ``r`` (m), > 0.
     cell_size : float
@@ -666,13 +666,13 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
         Kernel profile; ``sph`` splats ``sum_j V_j W(G_j (x - xbar_j)) det(G_j)`` with SPH
         volumes ``V_j``.
     support : float, optional
-        ``h / r`` (default per kernel as in :data:`filters.splat.DEFAULTS`: sph 4).
+        ``h / r`` (default per kernel as in :data:`filters.surface.splat.DEFAULTS`: sph 4).
     iso : float, optional
         Iso value (default :data:`ANISOTROPIC_ISO`).
     block_size, blobbiness, skip_interior, max_bytes
-        As in :func:`filters.splat.splat_sparse`.
+        As in :func:`filters.surface.splat.splat_sparse`.
     neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis, isotropy
-        As in :func:`filters.anisotropy.anisotropic_kernels` (``k_r``, ``N_eps``, ``lambda``,
+        As in :func:`filters.surface.anisotropy.anisotropic_kernels` (``k_r``, ``N_eps``, ``lambda``,
         ``tau``).
 
     Returns
@@ -699,8 +699,8 @@ def splat_dense_anisotropic(positions, radius, cell_size, *, kernel: str = "sph"
                             max_axis: float = ANISO_DEFAULTS["max_axis"],
                             isotropy: float = ANISO_DEFAULTS["isotropy"]) -> DenseField:
     """Dense counterpart of :func:`splat_sparse_anisotropic` (a drop-in for
-    :func:`filters.splat.splat_dense`); same parameters, returns a
-    :class:`filters.sparse_grid.DenseField`."""
+    :func:`filters.surface.splat.splat_dense`); same parameters, returns a
+    :class:`filters.surface.grid.DenseField`."""
     positions = _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes)
     centres, G, amplitude, kernel = _anisotropic_inputs(
         positions, radius, kernel, support,

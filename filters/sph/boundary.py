@@ -29,9 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from .kernels import kernel_id, kernel_w
-from .neighbors import NeighborSearch
-from .validation import check_finite_vector, check_int, check_range
+from ..kernels import kernel_id, kernel_w
+from ..neighbors import NeighborSearch
+from ..validation import check_finite_vector, check_int, check_range
 
 __all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary",
            "concatenate_boundaries"]

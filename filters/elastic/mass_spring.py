@@ -1,9 +1,9 @@
 """Mass-spring simulations: hair, cloth and jello, with colliders and a choice of integrator.
 
-:class:`MassSpringSimulation` couples a :class:`filters.topology.SpringTopology` with a
-:class:`filters.springs.SpringSystem` and one of the schemes of :mod:`filters.integrators`
+:class:`MassSpringSimulation` couples a :class:`filters.elastic.topology.SpringTopology` with a
+:class:`filters.elastic.springs.SpringSystem` and one of the schemes of :mod:`filters.integrators`
 (backward Euler by Newton with a line search by default).  After every step, particles are pushed
-out of the :class:`filters.colliders.Colliders` with restitution and friction.  Frames carry the
+out of the :class:`filters.elastic.contact.Colliders` with restitution and friction.  Frames carry the
 spring mesh (hair as lines, cloth as triangles) or, for jello, the user's embedded mesh deformed
 by the lattice (trilinear weights), with a fixed topology so that XDMF export can share it.
 """
@@ -15,13 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .colliders import Colliders
-from .integrators import SCHEMES, SOLVERS, integrate
-from .simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
+from .contact import Colliders
+from ..integrators import SCHEMES, SOLVERS, integrate
+from ..simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
 from .springs import DAMPING_MODES, SpringSystem
 from .topology import (BEND, SHEAR, STRETCH, SpringTopology, cloth_from_mesh, cloth_grid,
                        hair_strands, jello_from_mesh)
-from .validation import check_choice, check_finite_vector, check_int, check_range
+from ..validation import check_choice, check_finite_vector, check_int, check_range
 
 __all__ = [
     "MassSpringModel",
@@ -86,7 +86,7 @@ class MassSpringSimulation(Simulation):
     Parameters
     ----------
     topology : SpringTopology
-        From :mod:`filters.topology` (pins included).
+        From :mod:`filters.elastic.topology` (pins included).
     velocities : (N, 3) array_like, optional
         Initial velocities (m/s).
     stretch_stiffness : float
@@ -97,7 +97,7 @@ class MassSpringSimulation(Simulation):
     damping : float
         Spring damping coefficient (N s/m), >= 0.
     damping_mode : {"axial", "relative"}
-        Spring damping model (see :mod:`filters.springs`).
+        Spring damping model (see :mod:`filters.elastic.springs`).
     drag : float
         Per-particle drag ``-drag v`` (N s/m), >= 0.
     gravity : sequence of 3 float
@@ -120,8 +120,8 @@ class MassSpringSimulation(Simulation):
         Any particle faster than this (m/s) raises :class:`SimulationUnstableError`.
     contact_stiffness : float, optional
         Penalty stiffness (N/m) of contacts in the implicit schemes (see
-        :class:`filters.springs.SpringSystem`); explicit schemes project particles out of the
-        colliders after every substep instead (:meth:`filters.colliders.Colliders.resolve`).
+        :class:`filters.elastic.springs.SpringSystem`); explicit schemes project particles out of the
+        colliders after every substep instead (:meth:`filters.elastic.contact.Colliders.resolve`).
     """
 
     instability_hint = ("the spring forces are too stiff for this time step: use scheme='newton' "
@@ -225,7 +225,7 @@ class MassSpringSimulation(Simulation):
 
 
 class HairSimulation(MassSpringSimulation):
-    """Pinned strands (see :func:`filters.topology.hair_strands`); output lines.
+    """Pinned strands (see :func:`filters.elastic.topology.hair_strands`); output lines.
 
     Parameters
     ----------
@@ -234,7 +234,7 @@ class HairSimulation(MassSpringSimulation):
     directions : (R, 3) or (3,) array_like
         Strand directions.
     segments, length, linear_density, cells
-        As in :func:`filters.topology.hair_strands`.
+        As in :func:`filters.elastic.topology.hair_strands`.
     **options
         Passed to :class:`MassSpringSimulation`.
     """
@@ -247,7 +247,7 @@ class HairSimulation(MassSpringSimulation):
 
 
 class ClothSimulation(MassSpringSimulation):
-    """Cloth from a triangle mesh (see :func:`filters.topology.cloth_from_mesh`); output triangles.
+    """Cloth from a triangle mesh (see :func:`filters.elastic.topology.cloth_from_mesh`); output triangles.
 
     Parameters
     ----------
@@ -273,7 +273,7 @@ class ClothSimulation(MassSpringSimulation):
     def grid(cls, nx, ny, *, size=(1.0, 1.0), origin=(0.0, 0.0, 0.0), plane="xy", pinned=None,
              areal_density=0.2, **options):
         """A rectangular cloth with structural, shear and bend springs
-        (see :func:`filters.topology.cloth_grid`); particle ``i + nx * j``."""
+        (see :func:`filters.elastic.topology.cloth_grid`); particle ``i + nx * j``."""
         top = cloth_grid(nx, ny, size=size, origin=origin, plane=plane,
                          areal_density=areal_density)
         if pinned is not None:
