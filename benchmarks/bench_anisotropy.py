@@ -30,7 +30,7 @@ than ``N s^3 / A``, and its layers closer than s near the top).
 
 Methods: ``isotropic`` (``filters.surface.splat.splat_sparse`` + ``contour_sparse``), ``isotropic+smooth``
 (the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100 iterations, pass band
-0.001), ``anisotropic`` (``filters.surface.ellipsoids.splat_sparse_anisotropic`` defaults +
+0.001), ``anisotropic`` (``filters.surface.splat.splat_sparse_anisotropic`` defaults +
 ``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
 ``isotropic+feature`` / ``anisotropic+feature`` (+ 25 sweeps of feature-weighted Laplacian
 smoothing, :func:`filters.surface.smoothing.smooth_surface`, the ``MarchingCubes`` option),
@@ -72,7 +72,8 @@ if str(ROOT.parent) not in sys.path:
 from filters.surface.anisotropy import DEFAULTS as ANISO_DEFAULTS  # noqa: E402
 from filters.surface.anisotropy import anisotropic_kernels  # noqa: E402
 from filters.surface.splat import splat_sparse  # noqa: E402
-from filters.surface.ellipsoids import ANISOTROPIC_ISO, splat_sparse_anisotropic  # noqa: E402
+from filters.surface.ellipsoids import ANISOTROPIC_ISO  # noqa: E402
+from filters.surface.splat import splat_sparse_anisotropic  # noqa: E402
 from filters.surface.mesh import mesh_stats  # noqa: E402
 
 S = 0.02

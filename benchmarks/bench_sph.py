@@ -147,7 +147,8 @@ def part_nsearch(compare_passes=True):
     from scipy.spatial import cKDTree
 
     from filters.kernels import cubic_dw, cubic_w
-    from filters.neighbors import NeighborSearch, _counting_sort, _grid_keys, grid_query_padded
+    from filters.binning import cell_keys as _grid_keys, counting_sort as _counting_sort
+    from filters.neighbors import NeighborSearch, grid_query_padded
 
     out = {}
     s = 0.01

@@ -48,7 +48,9 @@ from vtkmodules.vtkFiltersCore import (
 from .algorithm import Algorithm
 from filters.surface.grid import DEFAULT_MAX_BYTES, DenseField, SparseGrid
 from filters.surface.smoothing import smooth_surface
-from filters.surface.splat import KERNELS, interpolate_attributes, splat_dense, splat_sparse
+from filters.kernels import SPLAT_KERNELS as KERNELS
+from filters.surface.attributes import interpolate_attributes
+from filters.surface.splat import splat_dense, splat_sparse
 from filters.surface.mesh import piece_flags, stitch
 from filters.validation import check_bool, check_choice, check_int, check_range
 
@@ -172,7 +174,7 @@ def _brick_images(grid: SparseGrid, group: int, chunk: int = 16):
 
     The values live in a buffer reused for every chunk of bricks: use them before the next."""
     bricks = grid.bricks(group)
-    table = grid._table()
+    table = grid.block_table()
     span = group * grid.block_size
     buffer = np.empty((min(chunk, bricks.shape[0]),) + (span + 1,) * 3, np.float32)
     for s in range(0, bricks.shape[0], chunk):
@@ -290,7 +292,7 @@ class MetaballSplat(Algorithm):
         Voxel edge (m); default ``radius / 2`` (splashsurf's cube size 0.5).
     kernel : {"blobby", "metaball", "sph", "zhu_bridson"}
         See :mod:`filters.surface.splat`.
-    support, iso, blobbiness
+    support_r, iso, blobbiness
         See :func:`filters.surface.splat.splat_sparse`.
     radius_array : str, optional
         Point array holding per-particle radii (m).
@@ -320,7 +322,7 @@ class MetaballSplat(Algorithm):
     """
 
     def __init__(self, radius: float = 0.01, cell_size: float | None = None, *,
-                 kernel: str = "sph", support=None, iso=None, blobbiness: float = 4.0,
+                 kernel: str = "sph", support_r=None, iso=None, blobbiness: float = 4.0,
                  radius_array: str | None = None, sparse: bool = True, block_size: int = 8,
                  brick_blocks: int = 4, attributes=("velocity",),
                  max_bytes: int = DEFAULT_MAX_BYTES, implicit=None,
@@ -337,7 +339,7 @@ class MetaballSplat(Algorithm):
         self.cell_size = (self.radius / 2 if cell_size is None else
                           check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
         self.kernel = check_choice("kernel", kernel, KERNELS)
-        self.support = support
+        self.support_r = support_r
         self.iso = iso
         self.blobbiness = blobbiness
         self.radius_array = radius_array
@@ -354,7 +356,7 @@ class MetaballSplat(Algorithm):
             outputType="vtkPartitionedDataSet" if self.sparse else "vtkImageData")
 
     def _options(self):
-        options = dict(kernel=self.kernel, support=self.support, iso=self.iso,
+        options = dict(kernel=self.kernel, support_r=self.support_r, iso=self.iso,
                        block_size=self.block_size, blobbiness=self.blobbiness,
                        max_bytes=self.max_bytes)
         if self.anisotropic:
@@ -364,7 +366,7 @@ class MetaballSplat(Algorithm):
     def _splat(self, sparse: bool):
         """The splatting function for the chosen grid and kernel shape."""
         if self.anisotropic:
-            from filters.surface.ellipsoids import splat_dense_anisotropic, splat_sparse_anisotropic
+            from filters.surface.splat import splat_dense_anisotropic, splat_sparse_anisotropic
 
             return splat_sparse_anisotropic if sparse else splat_dense_anisotropic
         return splat_sparse if sparse else splat_dense
@@ -418,7 +420,7 @@ def _attach_particles(out, inp, positions, radius, cell, splat):
               "radius": np.broadcast_to(np.asarray(radius, np.float64),
                                         (positions.shape[0],)).copy(),
               "settings": np.array([cell, KERNELS.index(splat.kernel),
-                                    np.nan if splat.support is None else splat.support,
+                                    np.nan if splat.support_r is None else splat.support_r,
                                     splat.blobbiness])}
     if positions.shape[0]:
         for name in splat.attributes:
@@ -536,7 +538,7 @@ class MarchingCubes(Algorithm):
         stacked = interpolate_attributes(
             pts.astype(np.float64), positions, radius, np.concatenate(columns, axis=1),
             cell_size=float(cell), kernel=KERNELS[int(kid)],
-            support=None if np.isnan(support) else float(support), blobbiness=float(blob))
+            support_r=None if np.isnan(support) else float(support), blobbiness=float(blob))
         out, start = {}, 0
         for name, v, c in zip(attrs, values, columns):
             part = stacked[:, start:start + c.shape[1]]
@@ -632,7 +634,7 @@ def surface_stages(radius: float = 0.01, cell_size: float | None = None, *,
     normals : bool
         Append a :class:`Normals` stage.
     **splat_options
-        Further keyword arguments of :class:`MetaballSplat` (``support``, ``iso``, ``sparse``,
+        Further keyword arguments of :class:`MetaballSplat` (``support_r``, ``iso``, ``sparse``,
         ``attributes``, ``max_bytes``, ``implicit``, ``operation``, ...).
 
     Returns

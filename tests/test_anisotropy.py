@@ -6,16 +6,14 @@ import numba
 import numpy as np
 import pytest
 
-from filters.surface.anisotropy import DEFAULTS, anisotropic_kernels, anisotropic_volumes, kernel_axes
+from filters.kernels import lone_particle_radius
+from filters.surface.anisotropy import DEFAULTS, MAX_AXIS_H, anisotropic_kernels, kernel_axes
+from filters.surface.ellipsoids import (ANISOTROPIC_ISO, splat_ellipsoids_dense,
+                                        splat_ellipsoids_sparse)
 from filters.surface.grid import DenseField, SparseGrid
-from filters.surface.splat import lone_particle_radius, splat_dense, splat_sparse
-from filters.surface.ellipsoids import (
-    ANISOTROPIC_ISO,
-    splat_dense_anisotropic,
-    splat_ellipsoids_dense,
-    splat_ellipsoids_sparse,
-    splat_sparse_anisotropic,
-)
+from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
+                                   splat_sparse_anisotropic)
+from filters.surface.volumes import anisotropic_volumes
 from filters.surface.mesh import mesh_stats
 from pipeline.surface import contour_dense, contour_sparse
 
@@ -85,8 +83,8 @@ def test_plane_lattice_flattens_along_the_normal():
     ratio = lengths[centre, 1] / lengths[centre, 0]
     assert np.allclose(ratio, DEFAULTS["stretch"], rtol=1e-6)
     assert np.allclose(np.prod(lengths[centre], axis=1), H**3, rtol=1e-9)
-    assert lengths.max() <= DEFAULTS["max_axis"] * H * (1 + 1e-12)
-    assert lengths[~centre].max() > 0.99 * DEFAULTS["max_axis"] * H  # the rim is capped
+    assert lengths.max() <= MAX_AXIS_H * H * (1 + 1e-12)
+    assert lengths[~centre].max() > 0.99 * MAX_AXIS_H * H  # the rim is capped
     # the centres stay in the plane
     assert np.abs((centres - x) @ normal).max() < 1e-8  # float32 sums
 
@@ -251,8 +249,8 @@ def test_empty_and_invalid_inputs():
         anisotropic_kernels(bad, R)
     with pytest.raises(ValueError, match="stretch"):
         anisotropic_kernels(x, R, stretch=0.5)
-    with pytest.raises(ValueError, match="max_axis"):
-        anisotropic_kernels(x, R, max_axis=0.5)
+    with pytest.raises(ValueError, match="max_axis_r"):
+        anisotropic_kernels(x, R, max_axis_r=0.5)
     with pytest.raises(ValueError, match="smoothing"):
         anisotropic_kernels(x, R, smoothing=1.5)
     with pytest.raises(ValueError, match="radius"):
@@ -322,7 +320,7 @@ def test_metaball_splat_stage_exposes_anisotropic_kernels():
 
 
 def test_anisotropic_volumes_of_a_lattice_and_a_lone_particle():
-    from filters.surface.anisotropy import anisotropic_volumes
+    from filters.surface.volumes import anisotropic_volumes
 
     x, _ = _lattice((9, 9, 9))
     G = np.repeat((np.eye(3) / H)[None], len(x), axis=0)

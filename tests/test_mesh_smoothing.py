@@ -123,4 +123,4 @@ def test_invalid_weights_and_feature_parameters():
     with pytest.raises(ValueError, match="radius"):
         feature_weights(pts, x, -1.0)
     with pytest.raises(ValueError, match="reach"):
-        feature_weights(pts, x, R, reach=0.5)
+        feature_weights(pts, x, R, reach_r=0.5)

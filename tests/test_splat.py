@@ -8,13 +8,10 @@ import pytest
 
 from filters.surface.csg import Box, Plane, Sphere, combine_dense, combine_sparse
 from filters.surface.grid import GridTooLargeError
-from filters.surface.splat import (
-    KERNELS,
-    interpolate_attributes,
-    lone_particle_radius,
-    splat_dense,
-    splat_sparse,
-)
+from filters.kernels import SPLAT_KERNELS as KERNELS
+from filters.kernels import lone_particle_radius
+from filters.surface.attributes import interpolate_attributes
+from filters.surface.splat import splat_dense, splat_sparse
 from filters.surface.mesh import merge_coincident, mesh_stats
 
 
@@ -25,11 +22,11 @@ def _cloud(n=600, seed=1):
 
 def test_kernel_values_at_known_points():
     # Wyvill's soft-object polynomial is 1/2 at q = 1/2; SPH spline W(r)/W(0) = 0.6 at q ~ 0.311
-    assert lone_particle_radius("metaball", 1.0, support=1.0, iso=0.5) == pytest.approx(0.5)
-    q = lone_particle_radius("sph", 1.0, support=1.0, iso=0.6)
+    assert lone_particle_radius("metaball", 1.0, support_r=1.0, iso=0.5) == pytest.approx(0.5)
+    q = lone_particle_radius("sph", 1.0, support_r=1.0, iso=0.6)
     assert 1 - 6 * q**2 + 6 * q**3 == pytest.approx(0.6, abs=1e-12)
     a = 4.0
-    q = lone_particle_radius("blobby", 1.0, support=1.0, iso=0.5, blobbiness=a)
+    q = lone_particle_radius("blobby", 1.0, support_r=1.0, iso=0.5, blobbiness=a)
     assert (math.exp(-a * q * q) - math.exp(-a)) / (1 - math.exp(-a)) == pytest.approx(0.5)
     assert lone_particle_radius("zhu_bridson", 0.3) == 0.3
 

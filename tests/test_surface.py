@@ -11,7 +11,8 @@ from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkPolyData
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 
 from filters import BallisticParticles
-from filters.surface.splat import lone_particle_radius, splat_dense, splat_sparse
+from filters.kernels import lone_particle_radius
+from filters.surface.splat import splat_dense, splat_sparse
 from filters.surface.mesh import mesh_stats
 from pipeline import SimulationSource
 from pipeline.algorithm import raise_pending
@@ -80,7 +81,7 @@ def test_lattice_ball_area_volume_and_topology_after_smoothing():
     radius = (3 * len(x) / (4 * math.pi)) ** (1 / 3) * S  # the ball of the particles' volume
     assert radius == pytest.approx(r0, rel=0.01)
     # smoothing length 1.75 r (support 3.5 r), iso 0.6, cell r / 2
-    stages = surface_stages(0.01, support=3.5, normals=True)
+    stages = surface_stages(0.01, support_r=3.5, normals=True)
     out = _run(stages, _particles(x))
     st = _stats(out)
     assert st.closed and st.manifold and st.euler == 2 and st.components == 1

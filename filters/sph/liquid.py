@@ -53,7 +53,8 @@ from numba import njit, prange
 from .boundary import BoundaryParticles, lattice_volume
 from .dfsph import DFSPHSolver
 from ..kernels import cohesion_c, kernel_dw, kernel_id, kernel_w
-from ..neighbors import _counting_sort, _grid_keys, bounds, grid_query_padded
+from ..binning import cell_keys as _grid_keys, counting_sort as _counting_sort
+from ..neighbors import bounds, grid_query_padded
 from ..simulation import OutputSpec, Simulation, SimulationUnstableError, State, Frame
 from ..validation import check_choice, check_finite_vector, check_int, check_range
 

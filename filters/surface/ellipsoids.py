@@ -48,50 +48,31 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .anisotropy import DEFAULTS as ANISO_DEFAULTS
-from .anisotropy import _kernels, _radii, _volumes
-from .grid import (
-    _EMPTY,
-    DEFAULT_MAX_BYTES,
-    DenseField,
-    SparseGrid,
-    _index_keys,
-    _insert,
-    _pack,
-    _unpack,
-    check_block_range,
-    check_budget,
-    corner_index,
-    lookup,
-    unpack_keys,
-)
-from .splat import DEFAULTS as SPLAT_DEFAULTS
-from .splat import _counting_sort, _home_keys, _row_kernel, evaluate_rounds
+from ..binning import EMPTY_KEY, insert_key, lookup
+from ..kernels import splat_kernel_id, splat_row_profile
 from ..validation import check_choice, check_int, check_points, check_range
+from .blocks import bin_by_block, classify_and_evaluate, grown_block_box
+from .grid import (DEFAULT_MAX_BYTES, DenseField, SparseGrid, check_block_range, check_budget,
+                   pack_key, unpack_key)
 
 __all__ = [
     "ANISOTROPIC_KERNELS",
     "ANISOTROPIC_ISO",
+    "ellipsoid_grid",
     "splat_ellipsoids_sparse",
     "splat_ellipsoids_dense",
-    "splat_sparse_anisotropic",
-    "splat_dense_anisotropic",
 ]
 
 #: Kernels the ellipsoid splatter supports (ids as in :mod:`filters.surface.splat`).
 ANISOTROPIC_KERNELS = ("blobby", "metaball", "sph")
-_KID = {"blobby": 0, "metaball": 1, "sph": 2}
 
 #: Default iso values of the anisotropic fields. For ``sph`` 0.367, calibrated once (default
 #: kernel options and volumes) so that the flat top of an unjittered lattice pool lies on the
-#: true plane, half a spacing above the top layer: measured offset +0.0000 spacings (0.01 in
-#: the iso moves it by about 0.01 spacings). Lattice balls of radius 4, 5, 6 and 7 spacings then
-#: keep their volume within -1.1 %, -0.1 %, -0.3 % and -0.3 %; small clusters come out larger
-#: (see :mod:`filters.surface.anisotropy`). Lower than the isotropic kernel's 0.6 because the flattened
-#: top-layer kernels overlap within their layer, so their volumes
-#: (:func:`filters.surface.anisotropy.anisotropic_volumes`: 0.82 s^3 on a flat surface, against 1.18 s^3
-#: from the isotropic density) are small and the field half a spacing above the top layer is
-#: weak. ``metaball`` and ``blobby`` keep the isotropic kernels' 0.5 (not calibrated).
+#: true plane, half a spacing above the top layer (``benchmarks/results/surface_notes.md``).
+#: Lower than the isotropic kernel's 0.6 because the flattened top-layer kernels overlap within
+#: their layer, so their volumes (:func:`filters.surface.volumes.anisotropic_volumes`) are
+#: small and the field half a spacing above the top layer is weak. ``metaball`` and ``blobby``
+#: keep the isotropic kernels' 0.5 (not calibrated).
 ANISOTROPIC_ISO = {"sph": 0.367, "metaball": 0.5, "blobby": 0.5}
 
 
@@ -177,7 +158,7 @@ def _touched_blocks(P, E, start, unique, bsz):
     ``unique[u]`` (particles ``start[u]:start[u + 1]``), the box of blocks spanned by its
     particles' boxes (tighter than dilating every home block by the largest reach: the long
     axes of flattened kernels reach a second block only on some sides)."""
-    table = np.full(1024, _EMPTY, np.int64)
+    table = np.full(1024, EMPTY_KEY, np.int64)
     values = np.empty(1024, np.int64)
     out = np.empty(1024, np.int64)
     count = 0
@@ -195,8 +176,8 @@ def _touched_blocks(P, E, start, unique, bsz):
         for bz in range(lo2, hi2 + 1):
             for by in range(lo1, hi1 + 1):
                 for bx in range(lo0, hi0 + 1):
-                    table, values, out, count, _ = _insert(table, values, out, count,
-                                                           _pack(bx, by, bz))
+                    table, values, out, count, _ = insert_key(table, values, out, count,
+                                                           pack_key(bx, by, bz))
     return np.sort(out[:count])
 
 
@@ -214,7 +195,7 @@ def _evaluate_blocks(targets, out, first, bsz, P, M6, E, S, BE, A, start, table,
     zero = np.float32(0.0)
     two = np.float32(2.0)
     for t in prange(targets.size):
-        bx, by, bz = _unpack(targets[t])
+        bx, by, bz = unpack_key(targets[t])
         ox = bx * bsz
         oy = by * bsz
         oz = bz * bsz
@@ -231,7 +212,7 @@ def _evaluate_blocks(targets, out, first, bsz, P, M6, E, S, BE, A, start, table,
                 gy = max(abs(dy) - 1, 0) * bsz
                 for dx in range(-reach, reach + 1):
                     gx = max(abs(dx) - 1, 0) * bsz
-                    v = lookup(table, ranks, _pack(bx + dx, by + dy, bz + dz))
+                    v = lookup(table, ranks, pack_key(bx + dx, by + dy, bz + dz))
                     if v < 0:
                         continue
                     if gx > BE[v, 0] or gy > BE[v, 1] or gz > BE[v, 2]:
@@ -337,7 +318,7 @@ def _evaluate_blocks(targets, out, first, bsz, P, M6, E, S, BE, A, start, table,
                         q2 = (rowa[k] * x + rowb[k]) * x + rowc[k]
                         q2 = q2 if q2 < one else one
                         q2 = abs(q2)  # rounding can leave -1e-7 near the centre
-                        acc += rowm[k] * _row_kernel(kernel, q2, blob_a, blob_e)
+                        acc += rowm[k] * splat_row_profile(kernel, q2, blob_a, blob_e)
                     buf[mz, my, mx] = iso - acc
 
 
@@ -350,7 +331,7 @@ def _field_at(x, y, z, P, M6, E, A, start, table, ranks, offs, bsz, kernel, blob
     bz = np.int64(math.floor(z / bsz))
     f = 0.0
     for o in range(offs.shape[0]):
-        v = lookup(table, ranks, _pack(bx + offs[o, 0], by + offs[o, 1], bz + offs[o, 2]))
+        v = lookup(table, ranks, pack_key(bx + offs[o, 0], by + offs[o, 1], bz + offs[o, 2]))
         if v < 0:
             continue
         for q in range(start[v], start[v + 1]):
@@ -362,7 +343,7 @@ def _field_at(x, y, z, P, M6, E, A, start, table, ranks, offs, bsz, kernel, blob
             q2 = (M6[q, 0] * ex * ex + M6[q, 1] * ey * ey + M6[q, 2] * ez * ez
                   + 2.0 * (M6[q, 3] * ex * ey + M6[q, 4] * ex * ez + M6[q, 5] * ey * ez))
             if q2 < 1.0:
-                f += A[q] * _row_kernel(kernel, np.float32(max(q2, 0.0)), blob_a, blob_e)
+                f += A[q] * splat_row_profile(kernel, np.float32(max(q2, 0.0)), blob_a, blob_e)
         if f >= stop:
             return f
     return f
@@ -388,17 +369,11 @@ def _upper_bounds(targets, bsz, P, E, L, A, start, table, ranks, offs, kernel, b
     matters)."""
     bound = np.empty(targets.size)
     for t in prange(targets.size):
-        bx, by, bz = _unpack(targets[t])
-        lox = bx * bsz - 1.0
-        loy = by * bsz - 1.0
-        loz = bz * bsz - 1.0
-        hix = lox + bsz + 1.0
-        hiy = loy + bsz + 1.0
-        hiz = loz + bsz + 1.0
+        bx, by, bz, lox, loy, loz, hix, hiy, hiz = grown_block_box(targets[t], bsz)
         b = 0.0
         near = False
         for o in range(offs.shape[0]):
-            v = lookup(table, ranks, _pack(bx + offs[o, 0], by + offs[o, 1], bz + offs[o, 2]))
+            v = lookup(table, ranks, pack_key(bx + offs[o, 0], by + offs[o, 1], bz + offs[o, 2]))
             if v < 0:
                 continue
             for q in range(start[v], start[v + 1]):
@@ -410,7 +385,7 @@ def _upper_bounds(targets, bsz, P, E, L, A, start, table, ranks, offs, kernel, b
                 q2 = (ex * ex + ey * ey + ez * ez) * L[q]
                 if q2 < 1.0:
                     near = True
-                    b += A[q] * _row_kernel(kernel, np.float32(q2), blob_a, blob_e)
+                    b += A[q] * splat_row_profile(kernel, np.float32(q2), blob_a, blob_e)
             if b >= stop:
                 break
         bound[t] = b if near else -1.0
@@ -454,12 +429,24 @@ def _check_inputs(centres, G, amplitude, cell_size, kernel, iso, block_size, blo
     return centres, G, amplitude, kernel, cell_size, iso, block_size, blobbiness, max_bytes
 
 
-def _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness, max_bytes,
-          skip_interior, evaluate_all, trusted=False):
+def ellipsoid_grid(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso=None,
+                   block_size: int = 8, blobbiness: float = 4.0,
+                   max_bytes: int = DEFAULT_MAX_BYTES, skip_interior: bool = True,
+                   evaluate_all: bool = False, trusted: bool = False) -> SparseGrid:
+    """Implicit values of ellipsoidal kernels on the blocks of the voxel lattice near the surface.
+
+    Parameters as in :func:`splat_ellipsoids_sparse`; ``evaluate_all`` evaluates every
+    candidate block (the dense grid's values); ``trusted`` skips the checks of ``G`` (finite,
+    positive definite) for matrices from :func:`filters.surface.anisotropy.kernel_matrices`.
+
+    Returns
+    -------
+    SparseGrid
+    """
     (centres, G, amplitude, kernel, cell_size, iso, bsz, blobbiness,
      max_bytes) = _check_inputs(centres, G, amplitude, cell_size, kernel, iso, block_size,
                                 blobbiness, max_bytes, trusted)
-    kid = _KID[kernel]
+    kid = splat_kernel_id(kernel)
     n = centres.shape[0]
     if n == 0:
         return SparseGrid(cell_size, bsz, np.zeros(0, np.int64),
@@ -468,10 +455,7 @@ def _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
     # before any key is computed: far-apart centres must not wrap past 2^20 blocks
     check_block_range("centres", centres, cell_size, bsz)
     check_budget(n * 200, max_bytes, f"particle bookkeeping for {n} particles")
-    keys = _home_keys(centres, 1.0 / cell_size, bsz)
-    table, ranks, unique, inverse = _index_keys(keys)
-    order, start = _counting_sort(inverse, unique.size)
-    del keys, inverse
+    table, ranks, unique, start, order = bin_by_block(centres, cell_size, bsz)
     P, M6, E, SR, L = _prepare_ellipsoids(centres, G, order, 1.0 / cell_size,
                                           float(cell_size))
     A = np.ascontiguousarray(amplitude[order], dtype=np.float32)
@@ -501,30 +485,25 @@ def _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
     iso32 = np.float32(iso)
     # candidate blocks: per home block, the box of blocks its particles' bounding boxes touch
     active = _touched_blocks(P, E, start, unique, bsz)
-    check_budget(active.size * 40, max_bytes, f"an index of {active.size} blocks")
-    states = np.full(active.size, 2, np.int8)
-    if not evaluate_all:
-        if skip_interior:
-            ucorner, corner_ranks = corner_index(active)
-            pts = np.ascontiguousarray(unpack_keys(ucorner) * float(bsz), dtype=np.float64)
-            del ucorner
-            vals = _sample_points(pts, P, M6, E, A, start, table, ranks, offs_corner, bsz, kid, ba,
-                                  be, iso32, 1.25 * iso)
-            del pts
-            inside = vals[corner_ranks].max(axis=1) <= -0.25 * iso
-            del corner_ranks, vals
-            states[inside] = 1
-        rest = np.flatnonzero(states == 2)
-        bound = _upper_bounds(active[rest], bsz, P, E, L, A, start, table, ranks, offs_block, kid,
-                              ba, be, iso)
-        states[rest[bound < iso]] = 0
-        del bound, rest
 
     def evaluate(targets, data, first):
         _evaluate_blocks(targets, data, first, bsz, P, M6, E, SR, BE, A, start, table, ranks,
                          reach, kid, ba, be, iso32)
 
-    return evaluate_rounds(active, states, evaluate, cell_size, bsz, -iso, iso, max_bytes)
+    def corner_values(points):
+        return _sample_points(points, P, M6, E, A, start, table, ranks, offs_corner, bsz, kid,
+                              ba, be, iso32, 1.25 * iso)
+
+    def upper_bounds(targets):
+        return _upper_bounds(targets, bsz, P, E, L, A, start, table, ranks, offs_block, kid,
+                             ba, be, iso)
+
+    return classify_and_evaluate(
+        active, block_size=bsz, cell_size=cell_size, max_bytes=max_bytes, inside_value=-iso,
+        outside_value=iso, evaluate=evaluate,
+        corner_values=corner_values if skip_interior and not evaluate_all else None,
+        inside_margin=0.25 * iso, upper_bounds=upper_bounds if not evaluate_all else None,
+        outside=lambda bound: bound < iso)
 
 
 def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "sph",
@@ -564,8 +543,9 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
     SparseGrid
         Implicit values ``iso - f`` (negative inside), as :func:`filters.surface.splat.splat_sparse`.
     """
-    return _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
-                 max_bytes, skip_interior, False)
+    return ellipsoid_grid(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
+                          block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,
+                          skip_interior=skip_interior)
 
 
 def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso=None,
@@ -584,128 +564,7 @@ def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "s
             ext = (centres.max(axis=0) - centres.min(axis=0) + 2 * ext_m) / cs + 3
             check_budget(int(4 * np.prod(ext)), int(max_bytes),
                          f"a dense grid of about {ext.astype(int).tolist()} voxels")
-    grid = _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
-                 max_bytes, False, True)
+    grid = ellipsoid_grid(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
+                          block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,
+                          evaluate_all=True)
     return grid.to_dense(max_bytes=max_bytes)
-
-
-# --------------------------------------------------------------------------------------------
-# Adapter: positions -> anisotropic field, with splat_sparse's signature
-# --------------------------------------------------------------------------------------------
-
-
-def _anisotropic_inputs(positions, radius, kernel, support, options):
-    positions = check_points("positions", positions)
-    kernel = check_choice("kernel", kernel, ANISOTROPIC_KERNELS)
-    support = SPLAT_DEFAULTS[kernel]["support"] if support is None else support
-    support = check_range("support", support, 0.0, 1e3, low_inclusive=False)
-    radii = _radii("radius", radius, positions.shape[0])
-    centres, G, volumes, det = _kernels(positions, radii, support=support, **options)
-    if kernel == "sph":
-        # the ellipsoids' volumes under the ellipsoids themselves (anisotropic_volumes); the
-        # spherical kernels inside the liquid keep their SPH volumes
-        hs = support * radii
-        aniso = ~np.all(G == np.eye(3) / hs[:, None, None], axis=(1, 2))
-        if aniso.any():
-            # no semi-axis is longer than max_axis * h (anisotropic_kernels)
-            consistent = _volumes(centres, G, det, (radii / radii.max()) ** 3, aniso,
-                                  options["max_axis"] * float(hs.max()))
-            volumes = np.where(aniso, consistent, volumes)
-        amplitude = volumes * (8.0 / math.pi) * det
-    else:
-        amplitude = det * (support * radii) ** 3
-    return centres, G, amplitude, kernel
-
-
-def _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes):
-    """Validate the grid parameters and the extent of the positions before the kernels are
-    computed (points the block keys cannot hold are refused before the neighbour search)."""
-    positions = check_points("positions", positions)
-    cell_size = check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
-    if iso is not None:
-        check_range("iso", iso, 0.0, math.inf, low_inclusive=False)
-    block_size = check_int("block_size", block_size, 4, 64)
-    check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
-    check_int("max_bytes", max_bytes, 1)
-    check_block_range("positions", positions, cell_size, block_size)
-    return positions
-
-
-def _options(neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis, isotropy):
-    return dict(neighbor_factor=neighbor_factor, stretch=stretch, min_neighbors=min_neighbors,
-                smoothing=smoothing, layer_band=layer_band, max_axis=max_axis,
-                isotropy=isotropy)
-
-
-def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph", support=None,
-                             iso=None, block_size: int = 8, blobbiness: float = 4.0,
-                             skip_interior: bool = True, max_bytes: int = DEFAULT_MAX_BYTES,
-                             neighbor_factor: float = ANISO_DEFAULTS["neighbor_factor"],
-                             stretch: float = ANISO_DEFAULTS["stretch"],
-                             min_neighbors: int = ANISO_DEFAULTS["min_neighbors"],
-                             smoothing: float = ANISO_DEFAULTS["smoothing"],
-                             layer_band: float = ANISO_DEFAULTS["layer_band"],
-                             max_axis: float = ANISO_DEFAULTS["max_axis"],
-                             isotropy: float = ANISO_DEFAULTS["isotropy"]) -> SparseGrid:
-    """Particles -> implicit field with anisotropic kernels (Yu & Turk 2013), sparse grid.
-
-    A drop-in for :func:`filters.surface.splat.splat_sparse` (same first parameters, same output):
-    :func:`filters.surface.anisotropy.anisotropic_kernels` gives smoothed centres and kernel matrices
-    (support ``h = support * r``), then :func:`splat_ellipsoids_sparse` splats them.
-
-    Parameters
-    ----------
-    positions : (N, 3) float64
-        Particle centres (m); points the block keys cannot hold (as in
-        :func:`filters.surface.splat.splat_sparse`) raise ValueError before any kernel is computed.
-    radius : float or (N,) float64
-        Particle radii ``r`` (m), > 0.
-    cell_size : float
-        Voxel edge (m), > 0.
-    kernel : {"sph", "metaball", "blobby"}
-        Kernel profile; ``sph`` splats ``sum_j V_j W(G_j (x - xbar_j)) det(G_j)`` with SPH
-        volumes ``V_j``.
-    support : float, optional
-        ``h / r`` (default per kernel as in :data:`filters.surface.splat.DEFAULTS`: sph 4).
-    iso : float, optional
-        Iso value (default :data:`ANISOTROPIC_ISO`).
-    block_size, blobbiness, skip_interior, max_bytes
-        As in :func:`filters.surface.splat.splat_sparse`.
-    neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis, isotropy
-        As in :func:`filters.surface.anisotropy.anisotropic_kernels` (``k_r``, ``N_eps``, ``lambda``,
-        ``tau``).
-
-    Returns
-    -------
-    SparseGrid
-    """
-    positions = _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes)
-    centres, G, amplitude, kernel = _anisotropic_inputs(
-        positions, radius, kernel, support,
-        _options(neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis,
-                 isotropy))
-    return _grid(centres, G, amplitude, cell_size, kernel, iso, block_size, blobbiness,
-                 max_bytes, skip_interior, False, trusted=True)
-
-
-def splat_dense_anisotropic(positions, radius, cell_size, *, kernel: str = "sph", support=None,
-                            iso=None, block_size: int = 8, blobbiness: float = 4.0,
-                            max_bytes: int = DEFAULT_MAX_BYTES,
-                            neighbor_factor: float = ANISO_DEFAULTS["neighbor_factor"],
-                            stretch: float = ANISO_DEFAULTS["stretch"],
-                            min_neighbors: int = ANISO_DEFAULTS["min_neighbors"],
-                            smoothing: float = ANISO_DEFAULTS["smoothing"],
-                            layer_band: float = ANISO_DEFAULTS["layer_band"],
-                            max_axis: float = ANISO_DEFAULTS["max_axis"],
-                            isotropy: float = ANISO_DEFAULTS["isotropy"]) -> DenseField:
-    """Dense counterpart of :func:`splat_sparse_anisotropic` (a drop-in for
-    :func:`filters.surface.splat.splat_dense`); same parameters, returns a
-    :class:`filters.surface.grid.DenseField`."""
-    positions = _check_grid_args(positions, cell_size, iso, block_size, blobbiness, max_bytes)
-    centres, G, amplitude, kernel = _anisotropic_inputs(
-        positions, radius, kernel, support,
-        _options(neighbor_factor, stretch, min_neighbors, smoothing, layer_band, max_axis,
-                 isotropy))
-    return splat_ellipsoids_dense(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
-                                  block_size=block_size, blobbiness=blobbiness,
-                                  max_bytes=max_bytes)

@@ -31,10 +31,13 @@ are handled: the grid holds only their own blocks, whatever the distance between
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
+
+from ..binning import EMPTY_KEY, index_keys, insert_key, lookup
 
 __all__ = [
     "DEFAULT_MAX_BYTES",
@@ -46,7 +49,12 @@ __all__ = [
     "DenseField",
     "check_budget",
     "pack_keys",
-    "build_index",
+    "unpack_keys",
+    "pack_key",
+    "unpack_key",
+    "block_keys",
+    "dilate_keys",
+    "corner_index",
 ]
 
 #: Default memory budget for a grid (bytes): 4 GiB.
@@ -55,7 +63,6 @@ DEFAULT_MAX_BYTES = 4 * 1024**3
 _OFF = 1 << 20  # block coordinates live in [-2**20, 2**20)
 _BITS = 21
 _M21 = (1 << 21) - 1
-_EMPTY = -1
 
 #: Block coordinates a key holds: ``[-BLOCK_LIMIT, BLOCK_LIMIT)`` along each axis.
 BLOCK_LIMIT = _OFF
@@ -167,99 +174,63 @@ def check_budget(nbytes: int, max_bytes: int, what: str) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Integer keys and an open-addressing hash table (Numba)
+# Block keys (hashed with the index of filters.binning)
 # --------------------------------------------------------------------------------------------
 
 
 @njit(cache=True, inline="always")
-def _pack(bx, by, bz):
+def pack_key(bx, by, bz):
+    """Key of block ``(bx, by, bz)`` (block coordinates in ``[-2**20, 2**20)``), 21 bits each."""
     return ((bx + _OFF) << 42) | ((by + _OFF) << 21) | (bz + _OFF)
 
 
 @njit(cache=True, inline="always")
-def _unpack(key):
+def unpack_key(key):
+    """Block coordinates ``(bx, by, bz)`` of a key (inverse of :func:`pack_key`)."""
     return ((key >> 42) & _M21) - _OFF, ((key >> 21) & _M21) - _OFF, (key & _M21) - _OFF
 
 
-@njit(cache=True, inline="always")
-def _probe(table, key):
-    """Slot of ``key`` in ``table`` (linear probing), or of the empty slot where it would go."""
-    mask = table.size - 1
-    h = key * -7046029254386353131  # Fibonacci hashing, wraps in int64
-    i = (h ^ (h >> 29)) & mask
-    while table[i] != _EMPTY and table[i] != key:
-        i = (i + 1) & mask
-    return i
-
-
-@njit(cache=True, inline="always")
-def lookup(table, values, key):
-    """Value stored for ``key``, or -1 if absent."""
-    i = _probe(table, key)
-    if table[i] == _EMPTY:
-        return -1
-    return values[i]
-
-
 @njit(cache=True)
-def _rehash(unique, count, capacity):
-    table = np.full(capacity, _EMPTY, np.int64)
-    values = np.empty(capacity, np.int64)
-    for u in range(count):
-        i = _probe(table, unique[u])
-        table[i] = unique[u]
-        values[i] = u
-    return table, values
+def block_keys(positions, inv_cell, block_size):
+    """Key of the block holding each point: ``floor(x * inv_cell / block_size)`` per axis.
 
+    Parameters
+    ----------
+    positions : (N, 3) float64
+        Points (m), within the range of :func:`check_block_range`.
+    inv_cell : float
+        Inverse voxel edge (1/m).
+    block_size : int
+        Voxels per block edge.
 
-@njit(cache=True, inline="always")
-def _insert(table, values, unique, count, key):
-    """Insert ``key`` (if new); returns (table, values, unique, count, rank), grown as needed."""
-    i = _probe(table, key)
-    if table[i] != _EMPTY:
-        return table, values, unique, count, values[i]
-    if 2 * (count + 1) > table.size:
-        table, values = _rehash(unique, count, 2 * table.size)
-        i = _probe(table, key)
-    if count == unique.size:
-        grown = np.empty(2 * unique.size, np.int64)
-        grown[:count] = unique[:count]
-        unique = grown
-    table[i] = key
-    values[i] = count
-    unique[count] = key
-    return table, values, unique, count + 1, count
-
-
-@njit(cache=True)
-def _index_keys(keys):
-    """Unique keys in first-seen order, the table mapping key -> rank, and each input's rank."""
-    n = keys.size
-    table = np.full(1024, _EMPTY, np.int64)
-    values = np.empty(1024, np.int64)
-    unique = np.empty(1024, np.int64)
-    inverse = np.empty(n, np.int64)
-    count = 0
-    for t in range(n):
-        table, values, unique, count, r = _insert(table, values, unique, count, keys[t])
-        inverse[t] = r
-    return table, values, unique[:count].copy(), inverse
+    Returns
+    -------
+    (N,) int64
+    """
+    n = positions.shape[0]
+    keys = np.empty(n, np.int64)
+    for p in range(n):
+        bx = np.int64(math.floor(positions[p, 0] * inv_cell / block_size))
+        by = np.int64(math.floor(positions[p, 1] * inv_cell / block_size))
+        bz = np.int64(math.floor(positions[p, 2] * inv_cell / block_size))
+        keys[p] = pack_key(bx, by, bz)
+    return keys
 
 
 @njit(cache=True)
 def _dilate(unique, reach):
     """Distinct keys of all blocks within ``reach`` blocks (Chebyshev) of those in ``unique``."""
-    table = np.full(1024, _EMPTY, np.int64)
+    table = np.full(1024, EMPTY_KEY, np.int64)
     values = np.empty(1024, np.int64)
     out = np.empty(1024, np.int64)
     count = 0
     for u in range(unique.size):
-        bx, by, bz = _unpack(unique[u])
+        bx, by, bz = unpack_key(unique[u])
         for dz in range(-reach, reach + 1):
             for dy in range(-reach, reach + 1):
                 for dx in range(-reach, reach + 1):
-                    table, values, out, count, _ = _insert(table, values, out, count,
-                                                           _pack(bx + dx, by + dy, bz + dz))
+                    table, values, out, count, _ = insert_key(table, values, out, count,
+                                                           pack_key(bx + dx, by + dy, bz + dz))
     return out[:count].copy()
 
 
@@ -267,19 +238,19 @@ def _dilate(unique, reach):
 def corner_index(keys):
     """Distinct corner points of blocks ``keys`` (as block-lattice keys) and, per block, the
     ranks of its 8 corners ``(M, 8)`` (x fastest)."""
-    table = np.full(1024, _EMPTY, np.int64)
+    table = np.full(1024, EMPTY_KEY, np.int64)
     values = np.empty(1024, np.int64)
     out = np.empty(1024, np.int64)
     count = 0
     ranks = np.empty((keys.size, 8), np.int32)
     for m in range(keys.size):
-        bx, by, bz = _unpack(keys[m])
+        bx, by, bz = unpack_key(keys[m])
         c = 0
         for dz in range(2):
             for dy in range(2):
                 for dx in range(2):
-                    table, values, out, count, r = _insert(table, values, out, count,
-                                                           _pack(bx + dx, by + dy, bz + dz))
+                    table, values, out, count, r = insert_key(table, values, out, count,
+                                                           pack_key(bx + dx, by + dy, bz + dz))
                     ranks[m, c] = r
                     c += 1
     return out[:count].copy(), ranks
@@ -301,26 +272,6 @@ def unpack_keys(keys: np.ndarray) -> np.ndarray:
     out[:, 1] = ((keys >> 21) & _M21) - _OFF
     out[:, 2] = (keys & _M21) - _OFF
     return out
-
-
-def build_index(keys: np.ndarray):
-    """Hash index of integer keys.
-
-    Parameters
-    ----------
-    keys : (M,) int64
-        Keys, possibly repeated.
-
-    Returns
-    -------
-    table, values : (C,) int64
-        Open-addressing table (``-1`` = empty) and the rank stored for each key.
-    unique : (U,) int64
-        The distinct keys in order of first appearance.
-    inverse : (M,) int64
-        Rank of each input key in ``unique``.
-    """
-    return _index_keys(np.ascontiguousarray(keys, dtype=np.int64))
 
 
 def dilate_keys(unique: np.ndarray, reach: int) -> np.ndarray:
@@ -415,9 +366,11 @@ class SparseGrid:
         """True when no block is evaluated (there is no surface)."""
         return self.keys.size == 0
 
-    def _table(self):
+    def block_table(self):
+        """Hash index of the blocks (see :func:`filters.binning.lookup`): the rank of an
+        evaluated block, -2 for an inside block, -1 (absent) for an outside one."""
         keys = np.concatenate([self.keys, self.inside_keys])
-        table, values, _, _ = build_index(keys)
+        table, values, _, _ = index_keys(keys)
         # ranks >= M are inside blocks: map them to -2 (inside); absent -> -1 (outside)
         m = self.keys.size
         values = np.where(values >= m, -2, values)
@@ -458,7 +411,7 @@ class SparseGrid:
         group : int
             Blocks per brick edge.
         table : tuple, optional
-            A block table from a previous call (speeds up repeated calls).
+            :meth:`block_table`, from a previous call (speeds up repeated calls).
 
         crossing : bool
             Also return, per brick, whether it holds both signs (a surface).
@@ -475,7 +428,7 @@ class SparseGrid:
             Only with ``crossing``.
         """
         if table is None:
-            table = self._table()
+            table = self.block_table()
         bricks = np.ascontiguousarray(bricks, dtype=np.int64)
         n = group * self.block_size + 1
         if out is None:
@@ -518,7 +471,7 @@ class SparseGrid:
         shape = tuple(int(s) for s in (index_hi - index_lo)[::-1])
         check_budget(4 * int(np.prod(shape)), max_bytes, f"a dense grid of {shape} voxels")
         values = np.empty(shape, np.float32)
-        table = self._table()
+        table = self.block_table()
         _fill_box(values, index_lo, bsz, table[0], table[1], self.data,
                   np.float32(self.inside_value), np.float32(self.outside_value))
         return DenseField(values=values, index_origin=index_lo, cell_size=self.cell_size)
@@ -541,7 +494,7 @@ def _fill_box(values, lo, bsz, table, ranks, data, inside, outside):
                 bx = gi // bsz
                 lx = gi - bx * bsz
                 run = min(bsz - lx, nx - i)
-                r = lookup(table, ranks, _pack(bx, by, bz))
+                r = lookup(table, ranks, pack_key(bx, by, bz))
                 if r >= 0:
                     for t in range(run):
                         values[k, j, i + t] = data[r, lz, ly, lx + t]
@@ -568,7 +521,7 @@ def _fill_bricks(out, cross, bricks, group, bsz, table, ranks, data, inside, out
         for c in range(nb):
             for bj in range(nb):
                 for a in range(nb):
-                    rank[c, bj, a] = lookup(table, ranks, _pack(bricks[b, 0] * group + a,
+                    rank[c, bj, a] = lookup(table, ranks, pack_key(bricks[b, 0] * group + a,
                                                                  bricks[b, 1] * group + bj,
                                                                  bricks[b, 2] * group + c))
         for k in range(n):

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .grid import _EMPTY, _probe
+from ..binning import EMPTY_KEY, probe
 
 __all__ = ["merge_coincident", "piece_flags", "stitch", "MeshStats", "mesh_stats"]
 
@@ -24,23 +24,23 @@ def _merge(bits):
     capacity = 1024
     while capacity < 2 * n:
         capacity *= 2
-    table = np.full(capacity, _EMPTY, np.int64)
+    table = np.full(capacity, EMPTY_KEY, np.int64)
     slot_to_new = np.empty(capacity, np.int64)
     remap = np.empty(n, np.int64)
     first = np.empty(n, np.int64)
     count = 0
     for p in range(n):
         key = ((bits[p, 0] * 73856093) ^ (bits[p, 1] * 19349663) ^ (bits[p, 2] * 83492791)) & 0x3FFFFFFFFFFFFFFF
-        i = _probe(table, key)
+        i = probe(table, key)
         # resolve hash collisions by comparing the coordinates themselves
         mask = capacity - 1
-        while table[i] != _EMPTY:
+        while table[i] != EMPTY_KEY:
             q = first[slot_to_new[i]]
             if table[i] == key and bits[q, 0] == bits[p, 0] and bits[q, 1] == bits[p, 1] \
                     and bits[q, 2] == bits[p, 2]:
                 break
             i = (i + 1) & mask
-        if table[i] == _EMPTY:
+        if table[i] == EMPTY_KEY:
             table[i] = key
             slot_to_new[i] = count
             first[count] = p
@@ -234,7 +234,7 @@ def _stitch(bits, flags, tris):
     capacity = 1024
     while capacity < 2 * nflag:
         capacity *= 2
-    table = np.full(capacity, _EMPTY, np.int64)
+    table = np.full(capacity, EMPTY_KEY, np.int64)
     slot_point = np.empty(capacity, np.int64)  # the kept point's new index (its row is final)
     mask = capacity - 1
     remap = np.empty(n, np.int64)
@@ -246,9 +246,9 @@ def _stitch(bits, flags, tris):
         b2 = bits[p, 2]
         if flags[p]:
             key = ((b0 * 73856093) ^ (b1 * 19349663) ^ (b2 * 83492791)) & 0x3FFFFFFFFFFFFFFF
-            i = _probe(table, key)
+            i = probe(table, key)
             found = -1
-            while table[i] != _EMPTY:
+            while table[i] != EMPTY_KEY:
                 q = slot_point[i]
                 if table[i] == key and bits[q, 0] == b0 and bits[q, 1] == b1 and bits[q, 2] == b2:
                     found = q

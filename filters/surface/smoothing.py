@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .anisotropy import _cell_sort, _fitting_cells
+from ..binning import fitting_cells, sort_into_cells
 from ..elastic.topology import check_triangles
 from ..validation import check_int, check_points, check_range
 
@@ -133,8 +133,8 @@ def _fullness(v, sx, start, origin, cell, dims, R):
 def _raw_fullness(vertices, positions, R):
     if positions.shape[0] == 0:
         return np.zeros(vertices.shape[0])
-    lo, cell, dims = _fitting_cells(positions, R)
-    _, start, sx = _cell_sort(positions, lo, 1.0 / cell, dims)
+    lo, cell, dims = fitting_cells(positions, R)
+    _, start, sx = sort_into_cells(positions, lo, 1.0 / cell, dims)
     return _fullness(vertices, sx, start, lo, cell, dims, R)
 
 
@@ -147,7 +147,7 @@ def _flat_fullness(spacing, R):
     return float(_raw_fullness(np.array([[0.0, 0.0, 0.5 * spacing]]), lat, R)[0])
 
 
-def feature_weights(vertices, positions, radius: float, *, reach: float = 8.0,
+def feature_weights(vertices, positions, radius: float, *, reach_r: float = 8.0,
                     low: float = 0.5, high: float = 1.0):
     """Per-vertex smoothing weights in [0, 1] from the fullness of the particle neighbourhood.
 
@@ -159,7 +159,7 @@ def feature_weights(vertices, positions, radius: float, *, reach: float = 8.0,
         Particle centres (m), spacing ``2 * radius``.
     radius : float
         Particle radius ``r`` (m), > 0.
-    reach : float
+    reach_r : float
         Neighbourhood radius ``R`` over ``r``, in [1, 20]; default 8 (four spacings).
     low, high : float
         Fullness (relative to a flat surface) below which the weight is 0 and above which it is
@@ -172,12 +172,12 @@ def feature_weights(vertices, positions, radius: float, *, reach: float = 8.0,
     vertices = check_points("vertices", vertices)
     positions = check_points("positions", positions)
     radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-    reach = check_range("reach", reach, 1.0, 20.0)
+    reach_r = check_range("reach_r", reach_r, 1.0, 20.0)
     low = check_range("low", low, 0.0, 2.0)
     high = check_range("high", high, 0.0, 2.0)
     if not low < high:
         raise ValueError(f"low must be < high, got low={low}, high={high}")
-    R = reach * radius
+    R = reach_r * radius
     n = _raw_fullness(vertices, positions, R) / _flat_fullness(2.0 * radius, R)
     u = np.clip((n - low) / (high - low), 0.0, 1.0)
     return u * u * (3.0 - 2.0 * u)
@@ -250,7 +250,7 @@ def weighted_laplacian(vertices, triangles, weights, *, iterations: int = 25,
 
 
 def smooth_surface(vertices, triangles, positions, radius: float, *, iterations: int = 25,
-                   beta: float = 1.0, reach: float = 8.0, low: float = 0.5,
+                   beta: float = 1.0, reach_r: float = 8.0, low: float = 0.5,
                    high: float = 1.0):
     """:func:`feature_weights` then :func:`weighted_laplacian` (see the module docstring).
 
@@ -259,5 +259,5 @@ def smooth_surface(vertices, triangles, positions, radius: float, *, iterations:
     (V, 3) float64
         Smoothed vertices; the triangles are unchanged.
     """
-    w = feature_weights(vertices, positions, radius, reach=reach, low=low, high=high)
+    w = feature_weights(vertices, positions, radius, reach_r=reach_r, low=low, high=high)
     return weighted_laplacian(vertices, triangles, w, iterations=iterations, beta=beta)
