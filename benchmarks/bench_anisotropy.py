@@ -283,7 +283,7 @@ def scene_surface(x, tank_lo, tank_hi, anisotropic):
     feature-weighted smoothing, ``Smooth(30, 0.01)``."""
     import pyvista as pv
 
-    from filters.surface.csg import Box
+    from filters.geometry import Box
     from pipeline.surface import polydata_to_mesh, surface_stages
 
     stages = surface_stages(radius=R, smooth_iterations=30, pass_band=0.01, feature_smoothing=25,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from filters.surface.csg import Box
+from filters.geometry import Box
 from filters.validation import check_int
 from pipeline import Flow
 from pipeline.surface import surface_stages

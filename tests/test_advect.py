@@ -6,8 +6,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from filters.advect import BoxEmitter, NoiseAdvection
-from filters.fields import CurlNoiseVelocity, NoiseWind, RigidRotation, Uniform
-from filters.noise.perlin import CurlNoise, PlaneSDF, SphereSDF
+from filters.fields import CurlNoise, NoiseWind, RigidRotation, Uniform
+from filters.geometry import Plane, Sphere
 from filters.simulation import State
 
 OMEGA = 2.0
@@ -51,7 +51,7 @@ def test_rk4_holds_the_radius_to_1e_6_per_revolution():
 
 
 def test_backward_euler_spirals_in_as_theory_says():
-    _, _, radius0, radius, a = _rotate("backward_euler")
+    _, _, radius0, radius, a = _rotate("linearized_backward_euler")
     # linear field, exact Jacobian: the step is exact backward Euler, |1 / (1 - i a)|
     np.testing.assert_allclose(radius / radius0, (1 + a * a) ** (-STEPS_PER_REV / 2),
                                rtol=1e-12)
@@ -75,7 +75,7 @@ def test_curl_noise_advection_does_not_clump():
             sim.step(0.01)
         return sim.state.positions
 
-    curl = CurlNoiseVelocity(amplitude=0.3, frequency=1.5, octaves=2, seed=3)
+    curl = CurlNoise(amplitude=0.3, frequency=1.5, octaves=2, seed=3)
     moved = run(curl)
     # the flow really moves and shears the particles
     assert np.median(np.linalg.norm(moved - pts, axis=1)) > 0.1
@@ -135,9 +135,9 @@ def test_newborns_advance_by_their_age():
 
 def test_colliders_push_particles_out():
     emitter = BoxEmitter(lower=(-1, -1, 0.5), upper=(1, 1, 1.0), rate=2000.0, lifetime=5.0)
-    floor = PlaneSDF((0, 0, 0.0), (0, 0, 1))
-    ball = SphereSDF((0.0, 0.0, 0.3), 0.25)
-    field = Uniform((0.0, 0.0, -1.5)) + CurlNoiseVelocity(amplitude=0.3, frequency=2.0)
+    floor = Plane((0, 0, 0.0), (0, 0, 1))
+    ball = Sphere((0.0, 0.0, 0.3), 0.25)
+    field = Uniform((0.0, 0.0, -1.5)) + CurlNoise(amplitude=0.3, frequency=2.0)
     sim = NoiseAdvection(field, emitter, colliders=(floor, ball), collider_margin=0.01,
                          integrator="rk4")
     for _ in range(60):
@@ -150,7 +150,7 @@ def test_colliders_push_particles_out():
 
 
 def test_ramped_curl_noise_keeps_particles_off_a_sphere_by_itself():
-    ball = SphereSDF((0.0, 0.0, 0.0), 0.5)
+    ball = Sphere((0.0, 0.0, 0.0), 0.5)
     flow = CurlNoise(amplitude=0.5, frequency=1.5, colliders=(ball,), ramp_distance=0.3)
     rng = np.random.default_rng(1)
     pts = rng.uniform(-1.0, 1.0, (3000, 3))
@@ -163,11 +163,11 @@ def test_ramped_curl_noise_keeps_particles_off_a_sphere_by_itself():
 
 def test_resume_from_checkpoint_is_bit_identical():
     def make():
-        field = CurlNoiseVelocity(amplitude=0.4, frequency=2.0, octaves=2, time_scale=0.5) \
+        field = CurlNoise(amplitude=0.4, frequency=2.0, octaves=2, time_scale=0.5) \
             + Uniform((0.0, 0.0, 0.3))
         emitter = BoxEmitter(rate=333.3, lifetime=0.4, lifetime_jitter=0.3)
-        return NoiseAdvection(field, emitter, colliders=(PlaneSDF(),), seed=17,
-                              integrator="backward_euler", size_range=(0.01, 0.02))
+        return NoiseAdvection(field, emitter, colliders=(Plane(),), seed=17,
+                              integrator="linearized_backward_euler", size_range=(0.01, 0.02))
 
     a = make()
     a.advance_to(0.5)
@@ -182,8 +182,8 @@ def test_resume_from_checkpoint_is_bit_identical():
         assert np.array_equal(sa[key], sb[key]), key
     assert a.state.n_points > 100
     # a different seed gives a different run
-    c = NoiseAdvection(CurlNoiseVelocity(), BoxEmitter(rate=100.0), seed=18)
-    d = NoiseAdvection(CurlNoiseVelocity(), BoxEmitter(rate=100.0), seed=19)
+    c = NoiseAdvection(CurlNoise(), BoxEmitter(rate=100.0), seed=18)
+    d = NoiseAdvection(CurlNoise(), BoxEmitter(rate=100.0), seed=19)
     c.step(0.1)
     d.step(0.1)
     assert not np.array_equal(c.state.positions, d.state.positions)

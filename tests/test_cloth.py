@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from filters.elastic.contact import Colliders
+from filters.geometry import Plane, Sphere
 from filters.elastic.mass_spring import ClothSimulation, HairSimulation, JelloSimulation
 from filters.simulation import SimulationUnstableError, State
 from filters.elastic.topology import (BEND, SHEAR, STRETCH, cloth_from_mesh, cloth_grid, hair_strands,
@@ -21,7 +22,7 @@ def _stiff_cloth(n, scheme, **options):
 
 
 def test_symplectic_euler_on_stiff_cloth_raises_instability():
-    sim = _stiff_cloth(64, "symplectic")
+    sim = _stiff_cloth(64, "symplectic_euler")
     with pytest.raises(SimulationUnstableError) as err:
         for _ in range(20):
             sim.step(1.0 / 60.0)
@@ -96,7 +97,7 @@ def test_newton_64x64_stiff_cloth_never_gains_energy_and_settles_on_its_pins(h):
 
 def test_jello_volume_returns_to_rest_after_settling():
     p, t = icosphere(0.1, 2, (0.0, 0.0, 0.16))
-    floor = Colliders(restitution=0.0, friction=0.5).add_plane((0, 0, 0), (0, 0, 1))
+    floor = Colliders(restitution=0.0, friction=0.5).add(Plane((0, 0, 0), (0, 0, 1)))
     sim = JelloSimulation(p, t, spacing=0.04, density=1000.0, stretch_stiffness=2e3,
                           damping=5.0, colliders=floor, solver="direct")
     v0 = mesh_volume(p, t)
@@ -162,8 +163,8 @@ def test_hair_swings_with_roots_fixed_and_resumes_bit_identically():
 
 
 def test_cloth_drapes_on_sphere_without_penetration():
-    col = Colliders(friction=0.5).add_sphere((0.5, 0.5, 0.0), 0.3).add_plane((0, 0, -0.3),
-                                                                           (0, 0, 1))
+    col = Colliders(friction=0.5).add(Sphere((0.5, 0.5, 0.0), 0.3)).add(Plane((0, 0, -0.3),
+                                                                               (0, 0, 1)))
     sim = ClothSimulation.grid(12, 12, origin=(0, 0, 0.4), stretch_stiffness=500.0,
                                damping=0.05, colliders=col)
     for _ in range(30):

@@ -5,12 +5,13 @@ import pytest
 from numba import njit
 
 from filters.elastic.contact import Colliders, resolve_particle, union_sdf
+from filters.geometry import Box, Plane, Sphere
 
 
 def test_signed_distances_and_normals():
-    c = (Colliders().add_plane((0, 0, 0), (0, 0, 2))
-         .add_sphere((0, 0, 2), 0.5)
-         .add_box((2, 2, 2), (3, 4, 5)))
+    c = (Colliders().add(Plane((0, 0, 0), (0, 0, 2)))
+         .add(Sphere((0, 0, 2), 0.5))
+         .add(Box((2, 2, 2), (3, 4, 5))))
     pts = np.array([[5.0, 5.0, 0.25],   # above the floor
                     [0.0, 0.0, 2.8],    # above the sphere
                     [2.5, 3.0, 3.5],    # inside the box, nearest face x
@@ -25,7 +26,7 @@ def test_signed_distances_and_normals():
 
 
 def test_restitution_and_friction_on_a_floor():
-    c = Colliders().add_plane((0, 0, 0), (0, 0, 1), restitution=0.5, friction=0.2)
+    c = Colliders().add(Plane((0, 0, 0), (0, 0, 1)), restitution=0.5, friction=0.2)
     x = np.array([[0.0, 0.0, -0.01], [1.0, 0.0, -0.02]])
     v = np.array([[3.0, 0.0, -2.0], [0.1, 0.0, -2.0]])
     assert c.resolve(x, v) == 2
@@ -43,15 +44,15 @@ def test_restitution_and_friction_on_a_floor():
 
 
 def test_containers_and_union_corner():
-    c = Colliders(thickness=0.01).add_box((0, 0, 0), (1, 1, 1), inside=True)
-    c.add_sphere((0, 0, 0), 10.0, inside=True)
+    c = Colliders(thickness=0.01).add(~Box((0, 0, 0), (1, 1, 1)))
+    c.add(~Sphere((0, 0, 0), 10.0))
     rng = np.random.default_rng(0)
     x = rng.uniform(-0.5, 1.5, size=(200, 3))
     v = rng.normal(size=(200, 3))
     c.resolve(x, v)
     assert x.min() >= 0.01 - 1e-12 and x.max() <= 0.99 + 1e-12
     # a corner of two planes pushes a particle out of both
-    corner = Colliders().add_plane((0, 0, 0), (0, 0, 1)).add_plane((0, 0, 0), (1, 0, 0))
+    corner = Colliders().add(Plane((0, 0, 0), (0, 0, 1))).add(Plane((0, 0, 0), (1, 0, 0)))
     x = np.array([[-0.1, 0.0, -0.2]])
     v = np.array([[-1.0, 0.0, -1.0]])
     corner.resolve(x, v)
@@ -60,7 +61,7 @@ def test_containers_and_union_corner():
 
 
 def test_callable_from_numba_kernels():
-    c = Colliders(restitution=1.0, friction=0.0).add_sphere((0, 0, 0), 1.0)
+    c = Colliders(restitution=1.0, friction=0.0).add(Sphere((0, 0, 0), 1.0))
 
     @njit
     def user_kernel(x, v, planes, spheres, boxes):
@@ -78,7 +79,7 @@ def test_callable_from_numba_kernels():
 
 
 def test_skip_mask_and_empty():
-    c = Colliders().add_plane((0, 0, 0), (0, 0, 1))
+    c = Colliders().add(Plane((0, 0, 0), (0, 0, 1)))
     x = np.array([[0.0, 0.0, -1.0]])
     v = np.zeros((1, 3))
     assert c.resolve(x, v, skip=np.array([True])) == 0 and x[0, 2] == -1.0
@@ -86,11 +87,11 @@ def test_skip_mask_and_empty():
 
 
 @pytest.mark.parametrize("build, match", [
-    (lambda c: c.add_sphere((0, 0, 0), -1.0), "radius"),
-    (lambda c: c.add_plane((0, 0, 0), (0, 0, 0)), "normal"),
-    (lambda c: c.add_box((0, 0, 0), (1, 0, 1)), "upper"),
-    (lambda c: c.add_plane((0, 0, 0), (0, 0, 1), restitution=1.5), "restitution"),
-    (lambda c: c.add_sphere((0, 0, np.nan), 1.0), "center"),
+    (lambda c: c.add(Sphere((0, 0, 0), -1.0)), "radius"),
+    (lambda c: c.add(Plane((0, 0, 0), (0, 0, 0))), "normal"),
+    (lambda c: c.add(Box((0, 0, 0), (1, 0, 1))), "upper"),
+    (lambda c: c.add(Plane((0, 0, 0), (0, 0, 1)), restitution=1.5), "restitution"),
+    (lambda c: c.add(Sphere((0, 0, np.nan), 1.0)), "center"),
 ])
 def test_bad_input(build, match):
     with pytest.raises(ValueError, match=match):
@@ -98,5 +99,5 @@ def test_bad_input(build, match):
     with pytest.raises(ValueError, match="friction"):
         Colliders(friction=-0.1)
     with pytest.raises(ValueError, match="positions"):
-        Colliders().add_plane((0, 0, 0), (0, 0, 1)).resolve(np.zeros((2, 3), np.float32),
+        Colliders().add(Plane((0, 0, 0), (0, 0, 1))).resolve(np.zeros((2, 3), np.float32),
                                                              np.zeros((2, 3)))

@@ -8,7 +8,7 @@ import pytest
 from numba import njit
 
 from filters.fields import (
-    CurlNoiseVelocity,
+    CurlNoise,
     Drag,
     FieldSum,
     Gravity,
@@ -18,9 +18,10 @@ from filters.fields import (
     Vortex,
     field_point,
     field_point_jacobian,
-    noise_variation,
+    jacobian_packed,
 )
-from filters.noise.perlin import CurlNoise, PlaneSDF, SphereSDF, fbm3
+from filters.geometry import Plane, Sphere
+from filters.noise import fbm3, noise_variation
 
 RNG = np.random.default_rng(2024)
 PTS = RNG.uniform(-1.5, 1.5, (200, 3))
@@ -95,15 +96,15 @@ def test_noise_wind_components_are_fbm_with_consecutive_seeds():
     assert np.abs(jac).max() > 0.1
 
 
-def test_curl_noise_velocity_matches_noise_module():
-    colliders = (PlaneSDF((0, 0, -1.0)), SphereSDF((0.3, 0.0, 0.2), 0.4))
-    kwargs = dict(amplitude=0.8, frequency=1.2, octaves=2, seed=6, time_scale=0.4,
-                  colliders=colliders, ramp_distance=0.5)
-    field = CurlNoiseVelocity(**kwargs)
-    reference = CurlNoise(**kwargs)
-    np.testing.assert_array_equal(field.evaluate(PTS, 1.3), reference.velocity(PTS, 1.3))
+def test_curl_noise_packed_and_vectorised_paths_agree_bitwise():
+    colliders = (Plane((0, 0, -1.0)), Sphere((0.3, 0.0, 0.2), 0.4))
+    field = CurlNoise(amplitude=0.8, frequency=1.2, octaves=2, seed=6, time_scale=0.4,
+                      colliders=colliders, ramp_distance=0.5)
+    # the packed term (what simulations evaluate in Numba) and the block-vectorised arrays
+    np.testing.assert_array_equal(field.evaluate(PTS, 1.3), field.velocity(PTS, 1.3))
     v, jac = field.jacobian(PTS, 1.3)
-    v_ref, jac_ref = reference.jacobian(PTS, 1.3)
+    v_ref, jac_ref = jacobian_packed(field.packed, PTS, 1.3)
+    np.testing.assert_allclose(v, v_ref, rtol=0, atol=1e-13)
     np.testing.assert_array_equal(jac, jac_ref)
     np.testing.assert_allclose(jac, _fd_jacobian(field, PTS, 1.3), rtol=0, atol=2e-6)
 
@@ -111,7 +112,7 @@ def test_curl_noise_velocity_matches_noise_module():
 def test_field_sum_adds_terms_and_jacobians():
     a = RigidRotation((0, 0, 1.0))
     b = Vortex(circulation=-1.0, core_radius=0.5)
-    c = CurlNoiseVelocity(amplitude=0.4, frequency=2.0, seed=1)
+    c = CurlNoise(amplitude=0.4, frequency=2.0, seed=1)
     d = NoiseWind(amplitude=(0.1, 0.2, 0.3), seed=9)
     total = a + b + c + d + Gravity()
     assert isinstance(total, FieldSum) and len(total.fields) == 5  # flattened
@@ -142,7 +143,7 @@ def _user_kernel(x, t, kinds, params, tables, colliders):
 
 
 def test_packed_field_is_callable_from_user_numba_kernels():
-    field = (CurlNoiseVelocity(amplitude=0.5, frequency=1.5, colliders=(PlaneSDF(),),
+    field = (CurlNoise(amplitude=0.5, frequency=1.5, colliders=(Plane(),),
                                ramp_distance=0.3)
              + Vortex(core_radius=0.2) + Uniform((0.0, 0.0, 0.4)))
     p = field.pack()
@@ -179,7 +180,7 @@ def test_validation_names_parameters():
     with pytest.raises(ValueError, match="frequency"):
         NoiseWind(frequency=-1.0)
     with pytest.raises(ValueError, match="octaves"):
-        CurlNoiseVelocity(octaves=99)
+        CurlNoise(octaves=99)
     with pytest.raises(ValueError, match="axis"):
         Vortex(axis=(0, 0, 0))
     with pytest.raises(ValueError, match="velocities"):

@@ -6,21 +6,22 @@ import math
 import numpy as np
 import pytest
 
-from filters.noise.perlin import (
+from filters.fields import CurlNoise
+from filters.geometry import Box, Plane, Sphere, union_distance
+from filters.noise import (
     PERMUTATION,
-    CurlNoise,
-    InsideSphereSDF,
-    PlaneSDF,
-    SphereSDF,
-    curl_noise,
     fbm3,
     perlin3,
     perlin3_gradient,
     perlin3_hessian,
     permutation_table,
-    signed_distance,
     turbulence3,
 )
+
+
+def curl_noise(points, t=0.0, **parameters):
+    """Curl-noise velocities at ``points`` (the field evaluated once)."""
+    return CurlNoise(**parameters).velocity(points, t)
 
 RNG = np.random.default_rng(12345)
 POINTS = RNG.uniform(-20.0, 20.0, (400, 3))
@@ -34,7 +35,7 @@ def test_reference_check_value_is_exact():
 
 
 def test_gradient_table_is_perlins_grad_function():
-    from filters.noise.perlin import GRADIENTS
+    from filters.noise import GRADIENTS
 
     def reference_grad(h, x, y, z):  # Perlin 2002, transcribed branch by branch
         h &= 15
@@ -232,10 +233,10 @@ def test_curl_noise_jacobian_is_traceless_and_matches_fd():
 
 def test_curl_noise_is_the_curl_of_its_potential():
     cn = CurlNoise(amplitude=0.7, frequency=0.9, octaves=2, seed=2,
-                   colliders=(SphereSDF((0, 0, 0), 1.0), PlaneSDF((0, 0, -2.0), (0, 0, 1))),
+                   colliders=(Sphere((0, 0, 0), 1.0), Plane((0, 0, -2.0), (0, 0, 1))),
                    ramp_distance=0.8, base_velocity=(0.1, -0.2, 0.5))
     pts = RNG.uniform(-2.0, 2.0, (300, 3))
-    pts = pts[signed_distance(pts, cn.colliders)[0] > 0.05]
+    pts = pts[union_distance(pts, cn.colliders)[0] > 0.05]
     h = 1e-5
     d = [None, None, None]
     for axis in range(3):
@@ -246,9 +247,9 @@ def test_curl_noise_is_the_curl_of_its_potential():
     assert np.abs(cn.velocity(pts) - curl).max() < 1e-7
 
 
-@pytest.mark.parametrize("collider", [PlaneSDF((0, 0, 0.2), (0, 0, 1)),
-                                      SphereSDF((0.1, -0.2, 0.3), 0.8),
-                                      InsideSphereSDF((0, 0, 0), 3.0)])
+@pytest.mark.parametrize("collider", [Plane((0, 0, 0.2), (0, 0, 1)),
+                                      Sphere((0.1, -0.2, 0.3), 0.8),
+                                      ~Sphere((0, 0, 0), 3.0)])
 def test_boundary_ramp_makes_flow_tangent_and_stays_divergence_free(collider):
     base = (0.3, 0.0, 0.8)  # a uniform wind, also deflected by the ramp
     cn = CurlNoise(amplitude=1.0, frequency=1.1, octaves=2, seed=8, colliders=(collider,),
@@ -257,9 +258,9 @@ def test_boundary_ramp_makes_flow_tangent_and_stays_divergence_free(collider):
     # points exactly on the surface: project random points onto it
     pts = RNG.uniform(-2.0, 2.0, (300, 3))
     for _ in range(3):
-        d, n = signed_distance(pts, (collider,))
+        d, n = union_distance(pts, (collider,))
         pts = pts - d[:, None] * n
-    d, n = signed_distance(pts, (collider,))
+    d, n = union_distance(pts, (collider,))
     assert np.abs(d).max() < 1e-12
     v = cn.velocity(pts)
     normal_speed = np.abs(np.einsum("ij,ij->i", v, n))
@@ -293,7 +294,7 @@ def test_curl_noise_function_and_validation():
     with pytest.raises(TypeError, match="colliders"):
         CurlNoise(colliders=("floor",))
     with pytest.raises(ValueError, match="radius"):
-        SphereSDF((0, 0, 0), -1.0)
+        Sphere((0, 0, 0), -1.0)
     with pytest.raises(TypeError):
         perlin3(1.0, 2.0)
     with pytest.raises(ValueError, match="x"):
@@ -303,11 +304,13 @@ def test_curl_noise_function_and_validation():
 def test_vectorised_array_paths_equal_the_point_kernels_bitwise():
     # The array functions evaluate octave by octave in blocks (so the loops vectorise); the
     # point kernels that fields and simulations call from Numba must give the same bits.
-    from filters.noise.perlin import _kernel_table, _tables, curl_point, fbm_value, fbm_value_grad
+    from filters.noise.curl import curl_point
+    from filters.noise.fractal import fbm_value, fbm_value_grad
+    from filters.noise.perlin import kernel_table, kernel_tables
 
     pts = RNG.uniform(-6.0, 6.0, (60, 3))
     kwargs = dict(octaves=4, lacunarity=2.2, gain=0.45, frequency=0.9)
-    table = _kernel_table(5)
+    table = kernel_table(5)
     for turbulence in (False, True):
         values, grads = fbm3(pts, seed=5, turbulence=turbulence, gradient=True, **kwargs)
         values_only = fbm3(pts, seed=5, turbulence=turbulence, **kwargs)
@@ -317,33 +320,36 @@ def test_vectorised_array_paths_equal_the_point_kernels_bitwise():
             v, gx, gy, gz = fbm_value_grad(*args)
             assert values[i] == v and grads[i].tolist() == [gx, gy, gz]
     cn = CurlNoise(amplitude=0.6, frequency=1.4, octaves=3, seed=9, time_scale=0.3,
-                   colliders=(SphereSDF((0, 0, 0), 2.0),), ramp_distance=0.7,
+                   colliders=(Sphere((0, 0, 0), 2.0),), ramp_distance=0.7,
                    base_velocity=(0.0, 0.2, 0.4))
     vel = cn.velocity(pts, 1.1)
-    tables = _tables(9, 3)
+    tables = kernel_tables(9, 3)
     for i, (x, y, z) in enumerate(pts):
         expected = curl_point(tables, cn.packed_colliders, x, y, z, 1.1, 0.6, 1.4, 3, 2.0, 0.5,
                               0.3, 0.7, 0.0, 0.2, 0.4)
         assert vel[i].tolist() == list(expected)
 
 
-def test_colliders_module_objects_are_accepted():
+def test_one_set_of_shapes_for_colliders_and_the_noise_ramp():
     from filters.elastic.contact import Colliders
 
-    theirs = Colliders().add_plane((0, 0, -1.0), (0, 0, 2.0)).add_sphere((0.2, 0, 0), 0.5)
-    theirs.add_sphere((0, 0, 0), 4.0, inside=True)
-    ours = (PlaneSDF((0, 0, -1.0), (0, 0, 1.0)), SphereSDF((0.2, 0, 0), 0.5),
-            InsideSphereSDF((0, 0, 0), 4.0))
+    shapes = (Plane((0, 0, -1.0), (0, 0, 2.0)), Sphere((0.2, 0, 0), 0.5), ~Sphere((0, 0, 0), 4.0))
+    contact = Colliders()
+    for shape in shapes:
+        contact.add(shape)
+    assert contact.shapes == shapes
     pts = RNG.uniform(-3.0, 3.0, (200, 3))
-    d_theirs, n_theirs = theirs.sdf(pts)
-    d_ours, n_ours = signed_distance(pts, theirs)
-    np.testing.assert_allclose(d_ours, d_theirs, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(n_ours, n_theirs, rtol=0, atol=1e-12)
-    a = CurlNoise(colliders=theirs, ramp_distance=0.4).velocity(pts)
-    b = CurlNoise(colliders=ours, ramp_distance=0.4).velocity(pts)
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
-    with pytest.raises(ValueError, match="boxes"):
-        CurlNoise(colliders=Colliders().add_box((0, 0, 0), (1, 1, 1)), ramp_distance=0.1)
+    d_contact, n_contact = contact.sdf(pts)
+    d_ramp, n_ramp = union_distance(pts, contact.shapes)
+    np.testing.assert_allclose(d_ramp, d_contact, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(n_ramp, n_contact, rtol=0, atol=1e-12)
+    # the same convention as the shapes' own signed distances: negative inside the solid
+    np.testing.assert_allclose(d_ramp, np.min([s(pts) for s in shapes], axis=0), atol=1e-12)
+    a = CurlNoise(colliders=contact.shapes, ramp_distance=0.4).velocity(pts)
+    b = CurlNoise(colliders=list(shapes), ramp_distance=0.4).velocity(pts)
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(TypeError, match="colliders.*boxes"):
+        CurlNoise(colliders=(Box((0, 0, 0), (1, 1, 1)),), ramp_distance=0.1)
 
 
 # --- the whole finite domain (issue 16, item 7) -------------------------------------------------

@@ -6,7 +6,8 @@ import numba
 import numpy as np
 import pytest
 
-from filters.surface.csg import Box, Plane, Sphere, combine_dense, combine_sparse
+from filters.geometry import Box, Plane, Sphere
+from filters.surface.csg import combine_dense, combine_sparse
 from filters.surface.grid import GridTooLargeError
 from filters.kernels import SPLAT_KERNELS as KERNELS
 from filters.kernels import lone_particle_radius

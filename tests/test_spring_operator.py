@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from filters.elastic.contact import Colliders
-from filters.integrators import backward_euler, pcg_operator, solve_linear
+from filters.geometry import Plane
+from filters.integrators import backward_euler
+from filters.linalg import pcg_operator, solve_linear
 from filters.simulation import State
 from filters.elastic.springs import SpringSystem
 from filters.elastic.topology import cloth_grid
@@ -38,7 +40,7 @@ def test_operator_equals_assembled_matrix(mode, damping, drag, zero_rest):
 
 def test_operator_with_contacts_equals_assembled_matrix():
     floor = Colliders()
-    floor.add_plane((0, 0, 0), (0, 0, 1))
+    floor.add(Plane((0, 0, 0), (0, 0, 1)))
     top, system = _system("axial", 0.5, colliders=floor)
     x = top.positions.copy()
     x[:, 2] = -0.002 * (np.arange(x.shape[0]) % 3)  # some particles below the floor

@@ -244,7 +244,7 @@ def test_per_particle_radius_and_container_clip():
         d = np.linalg.norm(pts[near] - centre, axis=1)
         assert d.mean() == pytest.approx(lone_particle_radius("sph", radius), rel=0.01)
     # liquid ball clipped by the inside of a tank whose lid is at z = 0.05
-    from filters.surface.csg import Box
+    from filters.geometry import Box
     ball = _lattice_in(lambda g: np.linalg.norm(g, axis=1) < 0.1, 0.1)
     tank = Box((-1.0, -1.0, -1.0), (1.0, 1.0, 0.05))
     for sparse in (True, False):

@@ -1,8 +1,10 @@
-"""Static colliders as signed distance functions, with restitution and Coulomb friction.
+"""Static colliders of elastic objects: contact with restitution and Coulomb friction.
 
-A :class:`Colliders` object holds arrays of primitives — half-spaces (planes), spheres and
-axis-aligned boxes, each either a *solid* (particles stay outside) or a *container* (particles
-stay inside) — whose union is the obstacle.  Its arrays can be passed to the Numba functions
+A :class:`Colliders` object holds shapes of :mod:`filters.geometry` — half-spaces
+(:class:`~filters.geometry.Plane`), :class:`~filters.geometry.Sphere` and axis-aligned
+:class:`~filters.geometry.Box`, each either a *solid* (particles stay outside) or a *container*
+``~shape`` (particles stay inside) — whose union is the obstacle, packed into arrays with their
+restitution and friction.  Its arrays can be passed to the Numba functions
 :func:`union_sdf`, :func:`resolve_particle` and :func:`resolve_contacts` from any ``@njit``
 kernel (springs, SPH, advected particles), or used through :meth:`Colliders.resolve`.
 
@@ -31,7 +33,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..validation import check_finite_vector, check_points, check_range
+from ..geometry import Box, Complement, Plane, Shape, Sphere
+from ..validation import check_points, check_range
 
 __all__ = ["Colliders", "union_sdf", "resolve_particle", "resolve_contacts"]
 
@@ -196,10 +199,17 @@ class Colliders:
     thickness : float
         Particles are kept this far (m), >= 0, outside every obstacle (a particle radius).
 
+    Attributes
+    ----------
+    shapes : tuple of filters.geometry.Shape
+        The obstacles, in the order they were added.
+    planes, spheres, boxes : float64 arrays
+        The obstacles packed for the Numba kernels (layouts in the module docstring).
+
     Examples
     --------
-    >>> c = Colliders(restitution=0.2, friction=0.4).add_plane((0, 0, 0), (0, 0, 1))
-    >>> c = c.add_sphere((0, 0, 0.5), 0.3)
+    >>> c = Colliders(restitution=0.2, friction=0.4).add(Plane((0, 0, 0), (0, 0, 1)))
+    >>> c = c.add(Sphere((0, 0, 0.5), 0.3))
     """
 
     def __init__(self, *, restitution=0.0, friction=0.3, thickness=0.0):
@@ -209,6 +219,7 @@ class Colliders:
         self.planes = np.zeros((0, 6))
         self.spheres = np.zeros((0, 7))
         self.boxes = np.zeros((0, 9))
+        self.shapes: tuple = ()
 
     def _coeffs(self, restitution, friction):
         e = self.restitution if restitution is None else check_range("restitution", restitution,
@@ -216,37 +227,43 @@ class Colliders:
         mu = self.friction if friction is None else check_range("friction", friction, 0.0)
         return e, mu
 
-    def add_plane(self, point, normal, *, restitution=None, friction=None):
-        """Add the half-space behind the plane through ``point`` with (outward) ``normal``."""
-        point = check_finite_vector("point", point, 3)
-        normal = check_finite_vector("normal", normal, 3)
-        norm = float(np.linalg.norm(normal))
-        if norm == 0.0:
-            raise ValueError("normal must be a non-zero vector")
-        normal = normal / norm
-        e, mu = self._coeffs(restitution, friction)
-        row = np.r_[normal, normal @ point, e, mu]
-        self.planes = np.ascontiguousarray(np.vstack([self.planes, row]))
-        return self
+    def add(self, shape: Shape, *, restitution=None, friction=None) -> "Colliders":
+        """Add an obstacle: a :class:`filters.geometry.Plane` (the half-space behind it), a
+        :class:`~filters.geometry.Sphere` or :class:`~filters.geometry.Box` (solid), or a
+        container ``~Sphere(...)`` / ``~Box(...)`` (particles stay inside).
 
-    def add_sphere(self, center, radius, *, inside=False, restitution=None, friction=None):
-        """Add a solid ball (or, with ``inside=True``, a spherical container)."""
-        center = check_finite_vector("center", center, 3)
-        radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-        e, mu = self._coeffs(restitution, friction)
-        row = np.r_[center, radius, -1.0 if inside else 1.0, e, mu]
-        self.spheres = np.ascontiguousarray(np.vstack([self.spheres, row]))
-        return self
+        Parameters
+        ----------
+        shape : filters.geometry.Shape
+            One of the above; other shapes raise TypeError.
+        restitution : float, optional
+            Coefficient of restitution in [0, 1]; default the object's.
+        friction : float, optional
+            Coulomb friction coefficient, >= 0; default the object's.
 
-    def add_box(self, lower, upper, *, inside=False, restitution=None, friction=None):
-        """Add an axis-aligned solid box (or, with ``inside=True``, a box container)."""
-        lower = check_finite_vector("lower", lower, 3)
-        upper = check_finite_vector("upper", upper, 3)
-        if np.any(upper <= lower):
-            raise ValueError(f"upper must exceed lower in every axis, got {lower} and {upper}")
+        Returns
+        -------
+        Colliders
+            ``self``, so that calls chain.
+        """
         e, mu = self._coeffs(restitution, friction)
-        row = np.r_[lower, upper, -1.0 if inside else 1.0, e, mu]
-        self.boxes = np.ascontiguousarray(np.vstack([self.boxes, row]))
+        inside = isinstance(shape, Complement)
+        solid = shape.shape if inside else shape
+        side = -1.0 if inside else 1.0
+        if isinstance(solid, Plane) and not inside:
+            normal = np.array(solid.normal)
+            row = np.r_[normal, normal @ np.array(solid.point), e, mu]
+            self.planes = np.ascontiguousarray(np.vstack([self.planes, row]))
+        elif isinstance(solid, Sphere):
+            row = np.r_[solid.center, solid.radius, side, e, mu]
+            self.spheres = np.ascontiguousarray(np.vstack([self.spheres, row]))
+        elif isinstance(solid, Box):
+            row = np.r_[solid.lower, solid.upper, side, e, mu]
+            self.boxes = np.ascontiguousarray(np.vstack([self.boxes, row]))
+        else:
+            raise TypeError(f"shape must be a Plane, a Sphere, a Box or a container ~Sphere / "
+                            f"~Box, got {shape!r}")
+        self.shapes = self.shapes + (shape,)
         return self
 
     def __len__(self):

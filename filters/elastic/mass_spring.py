@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contact import Colliders
-from ..integrators import SCHEMES, SOLVERS, integrate
+from ..integrators import check_scheme, integrate
+from ..linalg import LinearSolver
 from ..simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
 from .springs import DAMPING_MODES, SpringSystem
 from .topology import (BEND, SHEAR, STRETCH, SpringTopology, cloth_from_mesh, cloth_grid,
@@ -51,7 +52,7 @@ class MassSpringModel:
     gravity : tuple of 3 float
         Acceleration (m/s^2).
     scheme : str
-        Integrator name (see :data:`filters.integrators.SCHEMES`).
+        Integrator name (one of :data:`filters.integrators.SCHEMES`).
     solver : str
         Linear solver of the implicit schemes.
     substeps : int
@@ -102,8 +103,9 @@ class MassSpringSimulation(Simulation):
         Per-particle drag ``-drag v`` (N s/m), >= 0.
     gravity : sequence of 3 float
         Acceleration (m/s^2).
-    scheme : {"newton", "linearized", "symplectic", "forward"}
-        Integrator; ``"newton"`` (backward Euler with line search) is the robust default.
+    scheme : {"backward_euler", "linearized_backward_euler", "symplectic_euler", "euler"}
+        Integrator (:mod:`filters.integrators`); ``"backward_euler"`` (solved by Newton's method
+        with a line search) is the robust default.
     solver : {"auto", "pcg", "direct"}
         Linear solver of the implicit schemes.
     colliders : Colliders, optional
@@ -124,12 +126,12 @@ class MassSpringSimulation(Simulation):
         colliders after every substep instead (:meth:`filters.elastic.contact.Colliders.resolve`).
     """
 
-    instability_hint = ("the spring forces are too stiff for this time step: use scheme='newton' "
-                        "or more substeps")
+    instability_hint = ("the spring forces are too stiff for this time step: use "
+                        "scheme='backward_euler' or more substeps")
 
     def __init__(self, topology, velocities=None, *, stretch_stiffness=1e3, shear_stiffness=None,
                  bend_stiffness=None, damping=0.0, damping_mode="axial", drag=0.0,
-                 gravity=(0.0, 0.0, -9.81), scheme="newton", solver="auto", colliders=None,
+                 gravity=(0.0, 0.0, -9.81), scheme="backward_euler", solver="auto", colliders=None,
                  max_dt=1.0 / 60.0, substeps=1, newton_tol=1e-3, max_newton=10, max_speed=100.0,
                  contact_stiffness=None):
         if not isinstance(topology, SpringTopology):
@@ -143,8 +145,8 @@ class MassSpringSimulation(Simulation):
         check_choice("damping_mode", damping_mode, DAMPING_MODES)
         drag = check_range("drag", drag, 0.0)
         gravity = check_finite_vector("gravity", gravity, 3)
-        check_choice("scheme", scheme, tuple(SCHEMES))
-        check_choice("solver", solver, SOLVERS)
+        check_scheme(scheme)
+        self.linear_solver = LinearSolver(solver)
         if colliders is not None and not isinstance(colliders, Colliders):
             raise TypeError(f"colliders must be a Colliders object, got {type(colliders).__name__}")
         self.max_dt = check_range("max_dt", max_dt, 0.0, math.inf, low_inclusive=False)
@@ -159,7 +161,7 @@ class MassSpringSimulation(Simulation):
             a.setflags(write=False)
         self.model = MassSpringModel(topology, stiffness, damp, damping_mode, drag,
                                      tuple(gravity), scheme, solver, substeps, max_speed)
-        implicit = scheme in ("newton", "linearized")
+        implicit = scheme in ("backward_euler", "linearized_backward_euler")
         self.system = SpringSystem(topology.springs, topology.rest_lengths, stiffness,
                                    topology.masses, damping=damp, damping_mode=damping_mode,
                                    drag=drag, gravity=gravity, pinned=topology.pinned,
@@ -194,9 +196,9 @@ class MassSpringSimulation(Simulation):
         m = self.model
         h = dt / m.substeps
         options = {}
-        if m.scheme in ("newton", "linearized"):
-            options["solver"] = m.solver
-        if m.scheme == "newton":
+        if m.scheme in ("backward_euler", "linearized_backward_euler"):
+            options["solver"] = self.linear_solver
+        if m.scheme == "backward_euler":
             options.update(self._newton)
         s = self.state
         for _ in range(m.substeps):

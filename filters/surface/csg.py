@@ -1,19 +1,13 @@
-"""Implicit primitives (plane, sphere, box) and constructive solid geometry on them.
+"""Constructive solid geometry of particle fields and shapes (:mod:`filters.geometry`).
 
-Every shape is a signed distance function (SDF, m): negative inside, zero on the surface,
-positive outside, and 1-Lipschitz (exact for the primitives, a bound for the CSG results).
-CSG follows Ricci (1973): union = min, intersection = max, difference ``a - b = max(a, -b)``;
-the operators ``|``, ``&`` and ``-`` build them.
-
-The shapes combine with a particle field from :mod:`filters.surface.splat` (``combine_dense``,
-``combine_sparse``), e.g. the liquid clipped by the inside of a container
-(``operation="intersection"``) or a liquid merged with a solid blob (``"union"``). The shape's
-distance is scaled into the units of the field (``1 / support`` radius for the summed kernels,
-voxels for ``zhu_bridson``) before the min / max, so that both slopes are comparable where the
-surfaces meet; the zero set, hence the surface, does not depend on that scale.
-
-VTK has implicit functions too (vtkPlane, vtkSphere, vtkBox, vtkImplicitBoolean), but this
-package does not import VTK, and these NumPy versions evaluate a whole block of voxels per call.
+A particle field from :mod:`filters.surface.splat` (negative inside) combines with a shape
+(signed distance, negative inside the solid) by Ricci's (1973) operators: ``"union"`` (min),
+``"intersection"`` (max), ``"difference"`` (``max(field, -shape)``): e.g. the liquid clipped by
+the inside of its tank (``operation="intersection"`` with the tank's inner
+:class:`filters.geometry.Box`) or a liquid merged with a solid blob (``"union"``). The shape's distance is scaled into the units of
+the field (about the slope of an SPH field across a surface) before the min / max, so that both
+slopes are comparable where the surfaces meet; the zero set, hence the surface, does not depend
+on that scale.
 """
 
 from __future__ import annotations
@@ -30,149 +24,12 @@ from .grid import (
     unpack_keys,
     DEFAULT_MAX_BYTES,
 )
-from ..validation import check_choice, check_finite_vector, check_points, check_range
+from ..geometry import Shape
+from ..validation import check_choice, check_range
 
-__all__ = [
-    "Implicit",
-    "Plane",
-    "Sphere",
-    "Box",
-    "Union",
-    "Intersection",
-    "Difference",
-    "combine_dense",
-    "combine_sparse",
-    "OPERATIONS",
-]
+__all__ = ["combine_dense", "combine_sparse", "OPERATIONS"]
 
 OPERATIONS = ("union", "intersection", "difference")
-
-
-class Implicit:
-    """Base class: ``shape(points) -> (N,) signed distances`` (m), negative inside."""
-
-    def __call__(self, points) -> np.ndarray:
-        return self.evaluate(check_points("points", points))
-
-    def evaluate(self, points: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def bounds(self):
-        """``(lo, hi)`` of the inside region (m), or None if it is unbounded."""
-        return None
-
-    def __or__(self, other):
-        return Union(self, other)
-
-    def __and__(self, other):
-        return Intersection(self, other)
-
-    def __sub__(self, other):
-        return Difference(self, other)
-
-
-class Plane(Implicit):
-    """Half-space below a plane: inside is the side opposite to ``normal``.
-
-    Parameters
-    ----------
-    origin : (3,) float
-        A point of the plane (m).
-    normal : (3,) float
-        Outward normal (normalised here).
-    """
-
-    def __init__(self, origin=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)):
-        self.origin = check_finite_vector("origin", origin, 3)
-        n = check_finite_vector("normal", normal, 3)
-        norm = float(np.linalg.norm(n))
-        if norm == 0.0:
-            raise ValueError("normal must be a non-zero vector")
-        self.normal = n / norm
-
-    def evaluate(self, points):
-        return (points - self.origin) @ self.normal
-
-
-class Sphere(Implicit):
-    """Ball of ``radius`` (m) about ``center`` (m)."""
-
-    def __init__(self, center=(0.0, 0.0, 0.0), radius: float = 1.0):
-        self.center = check_finite_vector("center", center, 3)
-        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-
-    def evaluate(self, points):
-        return np.linalg.norm(points - self.center, axis=1) - self.radius
-
-    def bounds(self):
-        return self.center - self.radius, self.center + self.radius
-
-
-class Box(Implicit):
-    """Axis-aligned box ``[lo, hi]`` (m), exact signed distance (Quilez's formulation)."""
-
-    def __init__(self, lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 1.0)):
-        self.lo = check_finite_vector("lo", lo, 3)
-        self.hi = check_finite_vector("hi", hi, 3)
-        if not (self.hi > self.lo).all():
-            raise ValueError(f"hi must exceed lo on every axis, got lo={self.lo}, hi={self.hi}")
-
-    def evaluate(self, points):
-        c = 0.5 * (self.lo + self.hi)
-        half = 0.5 * (self.hi - self.lo)
-        q = np.abs(points - c) - half
-        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
-        inside = np.minimum(q.max(axis=1), 0.0)
-        return outside + inside
-
-    def bounds(self):
-        return self.lo.copy(), self.hi.copy()
-
-
-class _Binary(Implicit):
-    def __init__(self, a: Implicit, b: Implicit):
-        if not isinstance(a, Implicit) or not isinstance(b, Implicit):
-            raise TypeError("CSG operands must be Implicit shapes")
-        self.a = a
-        self.b = b
-
-
-class Union(_Binary):
-    """``min(a, b)``: inside either."""
-
-    def evaluate(self, points):
-        return np.minimum(self.a.evaluate(points), self.b.evaluate(points))
-
-    def bounds(self):
-        ba, bb = self.a.bounds(), self.b.bounds()
-        if ba is None or bb is None:
-            return None
-        return np.minimum(ba[0], bb[0]), np.maximum(ba[1], bb[1])
-
-
-class Intersection(_Binary):
-    """``max(a, b)``: inside both."""
-
-    def evaluate(self, points):
-        return np.maximum(self.a.evaluate(points), self.b.evaluate(points))
-
-    def bounds(self):
-        ba, bb = self.a.bounds(), self.b.bounds()
-        if ba is None:
-            return bb
-        if bb is None:
-            return ba
-        return np.maximum(ba[0], bb[0]), np.minimum(ba[1], bb[1])
-
-
-class Difference(_Binary):
-    """``max(a, -b)``: inside ``a`` and outside ``b``."""
-
-    def evaluate(self, points):
-        return np.maximum(self.a.evaluate(points), -self.b.evaluate(points))
-
-    def bounds(self):
-        return self.a.bounds()
 
 
 _BLOCKS_PER_CALL = 128  # blocks whose voxels one shape evaluation takes (12 KiB each)
@@ -193,7 +50,7 @@ def _voxel_centres(index_lo, shape_zyx, cell):
     return (pts + np.asarray(index_lo, np.float64)) * cell
 
 
-def combine_dense(field: DenseField, shape: Implicit, operation: str = "intersection", *,
+def combine_dense(field: DenseField, shape: Shape, operation: str = "intersection", *,
                   scale: float | None = None) -> DenseField:
     """Combine a dense particle field with an implicit shape.
 
@@ -201,8 +58,8 @@ def combine_dense(field: DenseField, shape: Implicit, operation: str = "intersec
     ----------
     field : DenseField
         Implicit values of the particles (negative inside).
-    shape : Implicit
-        The shape (SDF, m).
+    shape : filters.geometry.Shape
+        The shape (signed distance, m, negative inside).
     operation : {"union", "intersection", "difference"}
         ``field op shape``.
     scale : float, optional
@@ -216,8 +73,8 @@ def combine_dense(field: DenseField, shape: Implicit, operation: str = "intersec
         at the box).
     """
     operation = check_choice("operation", operation, OPERATIONS)
-    if not isinstance(shape, Implicit):
-        raise TypeError("shape must be an Implicit")
+    if not isinstance(shape, Shape):
+        raise TypeError(f"shape must be a filters.geometry.Shape, got {type(shape).__name__}")
     scale = 1.0 / (8.0 * field.cell_size) if scale is None else check_range(
         "scale", scale, 0.0, math.inf, low_inclusive=False)
     values = field.values.copy()
@@ -230,7 +87,7 @@ def combine_dense(field: DenseField, shape: Implicit, operation: str = "intersec
                       cell_size=field.cell_size)
 
 
-def combine_sparse(grid: SparseGrid, shape: Implicit, operation: str = "intersection", *,
+def combine_sparse(grid: SparseGrid, shape: Shape, operation: str = "intersection", *,
                    scale: float | None = None, max_bytes: int = DEFAULT_MAX_BYTES) -> SparseGrid:
     """Combine a sparse particle field with an implicit shape, keeping the grid sparse.
 
@@ -243,7 +100,7 @@ def combine_sparse(grid: SparseGrid, shape: Implicit, operation: str = "intersec
     Parameters
     ----------
     grid : SparseGrid
-    shape : Implicit
+    shape : filters.geometry.Shape
     operation : {"union", "intersection", "difference"}
     scale : float, optional
         As in :func:`combine_dense`.
@@ -255,8 +112,8 @@ def combine_sparse(grid: SparseGrid, shape: Implicit, operation: str = "intersec
     SparseGrid
     """
     operation = check_choice("operation", operation, OPERATIONS)
-    if not isinstance(shape, Implicit):
-        raise TypeError("shape must be an Implicit")
+    if not isinstance(shape, Shape):
+        raise TypeError(f"shape must be a filters.geometry.Shape, got {type(shape).__name__}")
     cell = grid.cell_size
     bsz = grid.block_size
     scale = 1.0 / (8.0 * cell) if scale is None else check_range(

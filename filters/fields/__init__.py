@@ -1,0 +1,23 @@
+"""Composable velocity and force fields (see :mod:`filters.fields.terms`), packed for Numba
+kernels (:mod:`filters.fields.packed`)."""
+
+from .packed import PackedField, evaluate_packed, field_point, field_point_jacobian, jacobian_packed
+from .terms import (CurlNoise, Drag, Field, FieldSum, Gravity, NoiseWind, RigidRotation, Uniform,
+                    Vortex)
+
+__all__ = [
+    "Field",
+    "FieldSum",
+    "PackedField",
+    "Uniform",
+    "Gravity",
+    "Drag",
+    "RigidRotation",
+    "Vortex",
+    "NoiseWind",
+    "CurlNoise",
+    "field_point",
+    "field_point_jacobian",
+    "evaluate_packed",
+    "jacobian_packed",
+]
