@@ -107,13 +107,14 @@ def ball(radius, jitter=0.05, seed=0):
 
 
 def _contour(grid):
-    from pipeline.surface import contour_sparse
+    from pipeline.contour import contour_sparse
 
     return contour_sparse(grid)
 
 
 def _smooth(points, tris):
-    from pipeline.surface import Smooth, mesh_to_polydata, polydata_to_mesh
+    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface import Smooth
 
     s = Smooth()
     s.SetInputDataObject(mesh_to_polydata(points, tris))
@@ -284,7 +285,8 @@ def scene_surface(x, tank_lo, tank_hi, anisotropic):
     import pyvista as pv
 
     from filters.geometry import Box
-    from pipeline.surface import polydata_to_mesh, surface_stages
+    from pipeline.contour import polydata_to_mesh
+    from pipeline.surface import surface_stages
 
     stages = surface_stages(radius=R, smooth_iterations=30, pass_band=0.01, feature_smoothing=25,
                             implicit=Box(tank_lo, tank_hi), operation="intersection",

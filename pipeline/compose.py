@@ -8,7 +8,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
-from .algorithm import raise_pending, vtk_messages
+from .algorithm import connect_chain, update
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, export_xdmf, read_frame
 from .sources import SimulationSource
@@ -97,33 +97,21 @@ class Flow:
             raise ValueError(f"input must be one of {sorted(self.stages)}, got {input!r}")
         if not algorithms:
             raise ValueError("add() needs at least one algorithm")
-        upstream = self.stages[input].algorithm
         for algorithm in algorithms:
             if not isinstance(algorithm, vtkAlgorithm):
                 raise TypeError(f"stages must be VTK algorithms, got {type(algorithm).__name__}")
-            algorithm.SetInputConnection(0, upstream.GetOutputPort(0))
-            upstream = algorithm
+        connect_chain(algorithms, upstream=self.stages[input].algorithm)
         chain = self.stages[input].chain + list(algorithms)
-        self.stages[name] = Stage(name, upstream, chain, write, xdmf)
-        return upstream
+        self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf)
+        return algorithms[-1]
 
     def output(self, name: str, time: float):
         """Update output ``name`` at ``time`` and return a copy of its data object."""
         if name not in self.stages:
             raise ValueError(f"name must be one of {sorted(self.stages)}, got {name!r}")
         stage = self.stages[name]
-        algorithm = stage.algorithm
-        with vtk_messages() as log:  # our own exception says it better than VTK's echo of it
-            ok = algorithm.UpdateTimeStep(float(time))
-        raise_pending(stage.chain)
-        if not ok:  # a VTK filter of the chain failed without a Python exception
-            detail = log.errors[0] if log.errors else "no message"
-            raise RuntimeError(f"output {name!r}: the VTK pipeline failed at t = {time} "
-                               f"({algorithm.GetClassName()}): {detail}")
-        data = algorithm.GetOutputDataObject(0)
-        copy = data.NewInstance()
-        copy.ShallowCopy(data)
-        return copy
+        return update(stage.algorithm, stage.chain, time,
+                      what=f"output {name!r}: the VTK pipeline")
 
     def written_outputs(self) -> list[str]:
         """Names of the outputs that :meth:`run` writes as series."""

@@ -15,15 +15,15 @@ from filters.kernels import lone_particle_radius
 from filters.surface.splat import splat_dense, splat_sparse
 from filters.surface.mesh import mesh_stats
 from pipeline import SimulationSource
-from pipeline.algorithm import raise_pending
+from pipeline.algorithm import Algorithm, connect_chain, run_chain, update
+from pipeline.contour import contour_dense, contour_sparse, polydata_to_mesh
 from pipeline.surface import (
+    FeatureSmoothing,
+    InterpolateAttributes,
     MarchingCubes,
     MetaballSplat,
     Normals,
     Smooth,
-    contour_dense,
-    contour_sparse,
-    polydata_to_mesh,
     surface_stages,
 )
 
@@ -49,12 +49,7 @@ def _particles(x, velocity=None):
 
 
 def _run(stages, data):
-    stages[0].SetInputDataObject(data)
-    for a, b in zip(stages, stages[1:]):
-        b.SetInputConnection(a.GetOutputPort())
-    stages[-1].Update()
-    raise_pending(stages)
-    return stages[-1].GetOutputDataObject(0)
+    return run_chain(stages, data)
 
 
 def _stats(poly):
@@ -80,8 +75,10 @@ def test_lattice_ball_area_volume_and_topology_after_smoothing():
     x = _lattice_in(lambda g: np.linalg.norm(g, axis=1) < r0, r0)
     radius = (3 * len(x) / (4 * math.pi)) ** (1 / 3) * S  # the ball of the particles' volume
     assert radius == pytest.approx(r0, rel=0.01)
-    # smoothing length 1.75 r (support 3.5 r), iso 0.6, cell r / 2
-    stages = surface_stages(0.01, support_r=3.5, normals=True)
+    # smoothing length 1.75 r (support 3.5 r), iso 0.6, cell r / 2; isotropic kernels and the
+    # windowed sinc alone (100 iterations, pass band 0.001)
+    stages = surface_stages(0.01, support_r=3.5, normals=True, anisotropic=False,
+                            feature_smoothing=0, smooth_iterations=100, pass_band=0.001)
     out = _run(stages, _particles(x))
     st = _stats(out)
     assert st.closed and st.manifold and st.euler == 2 and st.components == 1
@@ -201,7 +198,8 @@ def test_nan_positions_raise_value_error():
 def test_velocity_is_interpolated_onto_vertices():
     x = _lattice_in(lambda g: np.linalg.norm(g, axis=1) < 0.06, 0.06)
     v = np.tile([1.0, -2.0, 3.0], (len(x), 1))
-    out = _run([MetaballSplat(0.01), MarchingCubes(), Smooth(), Normals()], _particles(x, v))
+    out = _run([MetaballSplat(0.01), MarchingCubes(), InterpolateAttributes(radius=0.01), Smooth(),
+                Normals()], _particles(x, v))
     vel = numpy_support.vtk_to_numpy(out.GetPointData().GetArray("velocity"))
     assert vel.shape == (out.GetNumberOfPoints(), 3)
     np.testing.assert_allclose(vel, np.tile([1.0, -2.0, 3.0], (len(vel), 1)), rtol=1e-12)
@@ -212,15 +210,11 @@ def test_stages_follow_time_requests_of_a_temporal_source():
     v = np.tile([1.0, 0.0, 0.0], (len(x), 1))
     sim = BallisticParticles(x, v, max_dt=1 / 100)
     source = SimulationSource(sim, fps=10, duration=0.5)
-    stages = surface_stages(0.01, smooth_iterations=10)
-    stages[0].SetInputConnection(source.GetOutputPort())
-    for a, b in zip(stages, stages[1:]):
-        b.SetInputConnection(a.GetOutputPort())
+    stages = surface_stages(0.01, smooth_iterations=10, anisotropic=False, feature_smoothing=0)
+    connect_chain(stages, upstream=source)
     centres = []
     for t in (0.3, 0.1):
-        stages[-1].UpdateTimeStep(t)
-        raise_pending([source] + stages)
-        out = stages[-1].GetOutputDataObject(0)
+        out = update(stages[-1], [source] + stages, t)
         assert out.GetInformation().Get(vtkDataObject.DATA_TIME_STEP()) == pytest.approx(t)
         pts, tris = polydata_to_mesh(out)
         assert mesh_stats(pts, tris).closed
@@ -266,7 +260,8 @@ def test_feature_smoothing_flattens_a_pool_and_keeps_the_mesh_valid():
     x = g.reshape(-1, 3) * S + rng.uniform(-0.1 * S, 0.1 * S, (14 * 14 * 5, 3))
     v = np.tile([0.5, 0.0, -1.0], (len(x), 1))
     plain = _run([MetaballSplat(0.01), MarchingCubes()], _particles(x, v))
-    smooth = _run([MetaballSplat(0.01), MarchingCubes(feature_smoothing=25)], _particles(x, v))
+    smooth = _run([MetaballSplat(0.01), MarchingCubes(), FeatureSmoothing(25, radius=0.01),
+                   InterpolateAttributes(radius=0.01)], _particles(x, v))
     p0, t0 = polydata_to_mesh(plain)
     p1, t1 = polydata_to_mesh(smooth)
     assert np.array_equal(t0, t1)
@@ -284,16 +279,50 @@ def test_feature_smoothing_flattens_a_pool_and_keeps_the_mesh_valid():
     np.testing.assert_allclose(vel, np.tile([0.5, 0.0, -1.0], (len(vel), 1)), rtol=1e-12)
 
 
-def test_feature_smoothing_needs_the_particles():
-    from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
+class _DropFieldData(Algorithm):
+    """A VTK filter that keeps the geometry and drops every point, cell and field array."""
 
-    src = vtkRTAnalyticSource()
-    mc = MarchingCubes(150.0, feature_smoothing=5)
-    mc.SetInputConnection(src.GetOutputPort())
-    mc.Update()
-    with pytest.raises(ValueError, match="feature_smoothing"):
-        raise_pending([mc])
-    with pytest.raises(ValueError, match="feature_smoothing"):
-        MarchingCubes(feature_smoothing=-1)
-    with pytest.raises(TypeError, match="interpolate"):
-        MarchingCubes(interpolate="no")
+    def __init__(self):
+        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
+                           outputType="vtkPolyData")
+
+    def RequestData(self, request, inInfo, outInfo):
+        inp = vtkPolyData.GetData(inInfo[0], 0)
+        out = vtkPolyData.GetData(outInfo, 0)
+        out.SetPoints(inp.GetPoints())
+        out.SetPolys(inp.GetPolys())
+        return 1
+
+
+def test_particle_stages_read_the_particles_through_any_filter():
+    # the particles reach feature smoothing and the attribute interpolation on their own input
+    # port: a VTK filter between the stages that drops every array changes nothing
+    x = _lattice_in(lambda g: np.linalg.norm(g, axis=1) < 0.07, 0.07)
+    v = np.tile([1.0, -2.0, 3.0], (len(x), 1))
+    direct = _run([MetaballSplat(0.01), MarchingCubes(), FeatureSmoothing(5, radius=0.01),
+                   InterpolateAttributes(radius=0.01)], _particles(x, v))
+    through = _run([MetaballSplat(0.01), MarchingCubes(), _DropFieldData(),
+                    FeatureSmoothing(5, radius=0.01), _DropFieldData(),
+                    InterpolateAttributes(radius=0.01)], _particles(x, v))
+    np.testing.assert_array_equal(polydata_to_mesh(through)[0], polydata_to_mesh(direct)[0])
+    vel = numpy_support.vtk_to_numpy(through.GetPointData().GetArray("velocity"))
+    np.testing.assert_allclose(vel, np.tile([1.0, -2.0, 3.0], (len(vel), 1)), rtol=1e-12)
+
+
+@pytest.mark.parametrize("build, error, match", [
+    (lambda: FeatureSmoothing(-1), ValueError, "iterations"),
+    (lambda: FeatureSmoothing(5, radius=0.0), ValueError, "radius"),
+    (lambda: InterpolateAttributes("velocity"), TypeError, "attributes"),
+    (lambda: InterpolateAttributes(kernel="cubic"), ValueError, "kernel"),
+    (lambda: MarchingCubes(math.nan), ValueError, "value"),
+    (lambda: MetaballSplat(0.01, support_r=-1.0), ValueError, "support_r"),
+    (lambda: MetaballSplat(0.01, sparse="false"), TypeError, "sparse"),
+    (lambda: MetaballSplat(0.01, radius_array=3), TypeError, "radius_array"),
+    (lambda: MetaballSplat(0.01, implicit="tank"), TypeError, "implicit"),
+    (lambda: MetaballSplat(0.01, anisotropy={"stretch": 0.5}), ValueError, "stretch"),
+    (lambda: Smooth(iterations=-1), ValueError, "iterations"),
+    (lambda: surface_stages(0.01, normals="yes"), TypeError, "normals"),
+])
+def test_every_stage_validates_every_argument(build, error, match):
+    with pytest.raises(error, match=match):
+        build()
