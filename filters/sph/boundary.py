@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from ..geometry import Box
 from ..kernels import kernel_id, kernel_w
 from ..neighbors import NeighborSearch
 from ..validation import check_finite_vector, check_int, check_range
@@ -80,7 +81,7 @@ def concatenate_boundaries(*parts: BoundaryParticles) -> BoundaryParticles:
                              np.concatenate([p.volumes for p in parts]))
 
 
-def lattice_volume(spacing: float, support: float, kernel: str = "cubic") -> float:
+def lattice_volume(spacing: float, support_m: float, kernel: str = "cubic") -> float:
     """Volume ``1 / sum_j W(x_j)`` over a cubic lattice of the given spacing (m^3).
 
     With masses ``rho0 * lattice_volume`` a fluid on this lattice has density ``rho0`` exactly
@@ -90,13 +91,13 @@ def lattice_volume(spacing: float, support: float, kernel: str = "cubic") -> flo
     ----------
     spacing : float
         Lattice spacing (m).
-    support : float
+    support_m : float
         Kernel support radius ``h`` (m).
     kernel : str
-        Kernel name, see :data:`filters.kernels.KERNELS`.
+        Kernel name, see :data:`filters.kernels.SMOOTHING_KERNELS`.
     """
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
-    support = check_range("support", support, 0.0, math.inf, low_inclusive=False)
+    support = check_range("support_m", support_m, 0.0, math.inf, low_inclusive=False)
     kind = kernel_id(kernel)
     n = int(math.ceil(support / spacing)) + 1
     g = np.arange(-n, n + 1) * spacing
@@ -127,8 +128,8 @@ def _axis_coords(lo, hi, spacing, layers):
     return coords, widths
 
 
-def box_boundary(lower, upper, spacing: float, *, support_factor: float = 2.0,
-                 kernel: str = "cubic", layers: int | None = None,
+def box_boundary(lower, upper=None, spacing: float | None = None, *,
+                 support_factor: float = 2.0, kernel: str = "cubic", layers: int | None = None,
                  open_top: bool = False) -> BoundaryParticles:
     """Boundary particles in layers outside the walls of the box ``[lower, upper]``.
 
@@ -139,7 +140,8 @@ def box_boundary(lower, upper, spacing: float, *, support_factor: float = 2.0,
     Parameters
     ----------
     lower, upper : sequence of 3 float
-        Inner corners of the tank (m), ``upper > lower`` component-wise.
+        Inner corners of the tank (m), ``upper > lower`` component-wise; or ``lower`` a
+        :class:`filters.geometry.Box` (the tank's inner box) and ``upper`` omitted.
     spacing : float
         Particle spacing (m), > 0.
     support_factor : float
@@ -155,8 +157,14 @@ def box_boundary(lower, upper, spacing: float, *, support_factor: float = 2.0,
     -------
     BoundaryParticles
     """
+    if isinstance(lower, Box):
+        if upper is not None:
+            raise ValueError("upper must be omitted when lower is a filters.geometry.Box")
+        lower, upper = lower.lower, lower.upper
     lower = check_finite_vector("lower", lower, 3)
     upper = check_finite_vector("upper", upper, 3)
+    if spacing is None:
+        raise TypeError("box_boundary needs the spacing (m)")
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     support_factor = check_range("support_factor", support_factor, 1.0, 4.0)
     if not (upper > lower).all():

@@ -9,26 +9,17 @@ smooths the bulk liquid fully and leaves thin features alone.
 Here, for every vertex ``v``:
 
 * fullness ``n_v = sum_j (1 - |v - x_j|^2 / R^2)`` over the particles ``x_j`` within ``R``
-  (default ``R = 8 r``, four particle spacings: wide enough that the layers under a surface
-  count, so that a sheet one particle thick looks half as full as a pool), divided by the value
-  ``n_flat`` of a point half a spacing above the flat top of a lattice pool (computed per call
-  on a small lattice, so it follows ``R`` and ``r``). Measured (anisotropic kernels, medians):
-  flat pools 0.98-1.0, lattice balls of radius 6 / 4 / 3 spacings 0.80 / 0.69 / 0.56, a single
-  layer 0.40, a ball of radius 2 spacings 0.34;
+  (``R = reach_r * r``, default ``8 r``, four particle spacings: wide enough that the layers
+  under a surface count, so that a sheet one particle thick looks half as full as a pool),
+  divided by the value ``n_flat`` of a point half a spacing above the flat top of a lattice pool
+  (computed per call on a small lattice, so it follows ``R`` and ``r``);
 * weight ``w_v = smoothstep((n_v - low) / (high - low))`` with ``low = 0.5, high = 1``: flat
-  liquid smoothed fully, balls of radius 3 spacings hardly, sheets and droplets not at all;
+  liquid smoothed fully, small balls hardly, sheets and droplets not at all;
 * ``iterations`` Jacobi sweeps ``v <- v + beta w_v (mean of v's edge neighbours - v)``.
 
 Laplacian smoothing moves convex regions inward (mean-curvature flow); the weights, not a
-volume constraint, limit that. Measured with the defaults (25 sweeps, beta 1) on the
-isotropic ``sph`` surfaces of lattice balls (jitter 5 %, ``benchmarks/bench_anisotropy.py``):
-radius 2 / 3 / 4 / 6 spacings change their volume by 0.0 / -0.3 / -2.1 / -2.0 %, where
-splashsurf's weighted smoothing (25 iterations) loses 10 / 5.7 / 4.3 / 1.9 %; a single layer
-does not move. Flat pools: RMS deviation from the true plane 0.042 -> 0.023 spacings (jittered
-lattice), 0.049 -> 0.026 and 0.033 -> 0.020 (SPH-settled pools), against 0.026 / 0.027 / 0.021
-for splashsurf's. Cost: 0.34 s for the 251k vertices of a 100k-particle block on 2 cores
-(fullness sums and edge lists about 0.15 s each, the sweeps 0.05 s), against 1.3 s for VTK's
-windowed sinc with 100 iterations (``benchmarks/bench_anisotropy.py``).
+volume constraint, limit that. The particles are sorted into cells by :mod:`filters.binning`;
+measurements behind the defaults are in ``benchmarks/results/surface_notes.md``.
 """
 
 from __future__ import annotations

@@ -41,10 +41,33 @@ def test_state_round_trips_through_arrays_bit_for_bit(rng):
 
 
 def test_state_copy_is_independent(rng):
-    state = State(rng.random((4, 3)))
+    state = State(rng.random((4, 3)), rng.random((4, 3)), time=0.25, step=7,
+                  extra={"id": np.arange(4), "density": rng.random(4),
+                         "rng": np.array([3, 5], dtype=np.uint64)})
     copy = state.copy()
-    copy.positions[0, 0] = 99.0
-    assert state.positions[0, 0] != 99.0
+    # equal, field for field, to the bit
+    assert copy.time == state.time and copy.step == state.step
+    for name in ("positions", "velocities"):
+        np.testing.assert_array_equal(getattr(copy, name), getattr(state, name))
+    assert set(copy.extra) == set(state.extra)
+    for name, values in state.extra.items():
+        assert copy.extra[name].dtype == values.dtype
+        np.testing.assert_array_equal(copy.extra[name], values)
+    # and shares no memory: changing every array of the copy leaves the original as it was
+    before = state.to_arrays()
+    copy.positions[:] = 99.0
+    copy.velocities[:] = -99.0
+    for values in copy.extra.values():
+        values[...] = 0
+    copy.extra["new"] = np.ones(2)
+    copy.time, copy.step = 9.0, 99
+    after = state.to_arrays()
+    assert set(after) == set(before)
+    for name in before:
+        np.testing.assert_array_equal(after[name], before[name])
+    # nor the other way round
+    state.positions[0, 0] = -1.0
+    assert copy.positions[0, 0] == 99.0
 
 
 @pytest.mark.parametrize("positions, match", [

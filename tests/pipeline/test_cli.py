@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pipeline.cli import main
@@ -109,11 +110,50 @@ def test_resume_with_other_parameters_is_refused(tmp_path, capsys):
 _SCRIPT = str(Path(sys.executable).with_name("blobflow"))  # installed beside this interpreter
 
 
-@pytest.mark.parametrize("command", [[_SCRIPT], [sys.executable, "-m", "pipeline"]])
-def test_console_script_and_module_agree(command):
-    result = subprocess.run(command + ["run", "nope"], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 2
-    assert result.stderr.strip().splitlines() == [
-        "blobflow: error: unknown scene 'nope'; scenes: " + result.stderr.split("scenes: ")[1].strip()
-    ]
-    assert "Traceback" not in result.stderr
+@pytest.mark.parametrize("arguments", [["run", "nope"], ["list", "--verbose"],
+                                       ["info", "missing.pvd"], ["surface"]])
+def test_console_script_and_module_agree(arguments, tmp_path):
+    # the installed `blobflow` script and `python -m pipeline` are the same program: the same
+    # exit code, the same output and the same error, byte for byte
+    script, module = (subprocess.run(command + arguments, capture_output=True, text=True,
+                                     timeout=120, cwd=tmp_path)
+                      for command in ([_SCRIPT], [sys.executable, "-m", "pipeline"]))
+    assert (script.returncode, script.stdout, script.stderr) == (
+        module.returncode, module.stdout, module.stderr)
+    assert "Traceback" not in script.stderr
+    if arguments[0] == "list":
+        assert script.returncode == 0 and "dam_break" in script.stdout
+    else:
+        assert script.returncode == 2 and script.stderr.count("\n") == 1
+        assert script.stderr.startswith("blobflow: error: ")
+    if arguments == ["run", "nope"]:
+        assert "unknown scene 'nope'; scenes: " in script.stderr
+
+
+def test_surface_of_a_scene_run_rebuilds_the_scene_surface(tmp_path, capsys):
+    # `blobflow surface` reads the producing run's record (spacing, tank, smoothing): with no
+    # option it writes, bitwise, the surface the scene wrote
+    run = tmp_path / "drop"
+    code, _, _ = _run_cli(capsys, "run", "drop", "--frames", "2", "--set", "spacing=0.02",
+                          "--out", str(run), "--no-render", "-q")
+    assert code == 0
+    code, _, _ = _run_cli(capsys, "surface", str(run / "particles.pvd"), "--out",
+                          str(tmp_path / "again"), "-q")
+    assert code == 0
+    _, scene = read_series(run / "surface.pvd")
+    _, again = read_series(tmp_path / "again" / "surface.pvd")
+    assert len(scene) == len(again) == 2
+    for a, b in zip(scene, again):
+        assert a.n_points > 0
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.faces, b.faces)
+        assert a.point_data.keys() == b.point_data.keys()
+        for name in a.point_data.keys():
+            np.testing.assert_array_equal(a.point_data[name], b.point_data[name])
+    # a flag given on the command line wins over the record
+    code, _, _ = _run_cli(capsys, "surface", str(run / "particles.pvd"), "--out",
+                          str(tmp_path / "iso"), "--option", "anisotropic=no", "-q")
+    assert code == 0
+    _, iso = read_series(tmp_path / "iso" / "surface.pvd")
+    assert iso[0].n_points != scene[0].n_points or not np.array_equal(iso[0].points,
+                                                                      scene[0].points)

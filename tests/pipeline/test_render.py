@@ -101,6 +101,22 @@ def test_empty_series_renders_empty_scene(tmp_path):
     writer.write(pv.PolyData(), 0.1)
     out = timelapse(path, tmp_path / "empty.gif", size=SIZE, progress=False)
     assert len(imageio.mimread(out)) == 2
+    # the frames themselves (PNG, lossless): a real picture of the empty scene, the same in
+    # both frames but for the time label at the top; a series with points looks different
+    frames = timelapse(path, tmp_path / "empty", size=SIZE, progress=False)
+    images = [np.asarray(imageio.imread(p))[..., :3].astype(int)
+              for p in sorted(frames.glob("*.png"))]
+    assert len(images) == 2 and images[0].shape == (SIZE[1], SIZE[0], 3)
+    label = 20  # rows of the time label
+    assert np.array_equal(images[0][label:], images[1][label:])
+    assert not np.array_equal(images[0][:label], images[1][:label])  # t = 0 and t = 0.1
+    assert images[0].std() > 1.0  # not a blank frame
+    points = tmp_path / "points.pvd"
+    writer = SeriesWriter(points)
+    writer.write(pv.PolyData(np.random.default_rng(0).uniform(0, 1, (50, 3))), 0.0)
+    drawn = timelapse(points, tmp_path / "points", size=SIZE, progress=False)
+    with_points = np.asarray(imageio.imread(sorted(drawn.glob("*.png"))[0]))[..., :3].astype(int)
+    assert np.abs(with_points[label:] - images[0][label:]).max() > 100
 
 
 def test_color_by_unknown_array_lists_the_arrays(series):
@@ -162,13 +178,26 @@ def test_every_scene_has_a_small_image_regression_case():
     assert set(available_scenes()) <= set(SMALL_SCENES), "add the new scene to SMALL_SCENES"
 
 
+@pytest.fixture(scope="module")
+def scene_series(tmp_path_factory):
+    """The written series of each small scene, run once for all the images of this module."""
+    runs = {}
+
+    def series(scene_name):
+        if scene_name not in runs:
+            parameters, frames = SMALL_SCENES[scene_name]
+            flow = load_scene(scene_name).build(**parameters)
+            flow.source.set_frames(flow.source.fps, frames=frames)
+            runs[scene_name] = flow.run(tmp_path_factory.mktemp(scene_name), progress=False)
+        return runs[scene_name]
+
+    return series
+
+
 @pytest.mark.parametrize("scene_name", sorted(SMALL_SCENES))
 @pytest.mark.parametrize("which", ["first", "last"])
-def test_scene_images_match_cache(scene_name, which, tmp_path, verify_image_cache):
-    parameters, frames = SMALL_SCENES[scene_name]
-    flow = load_scene(scene_name).build(**parameters)
-    flow.source.set_frames(flow.source.fps, frames=frames)
-    paths = flow.run(tmp_path, progress=False)
+def test_scene_images_match_cache(scene_name, which, scene_series, verify_image_cache):
+    paths = scene_series(scene_name)
     index = 0 if which == "first" else -1
     renderer = Renderer(list(paths.values()), size=SIZE, frames=[index])
     renderer.render(index, 0.0)

@@ -6,7 +6,7 @@ import numba
 import numpy as np
 import pytest
 
-from filters.geometry import Box, Plane, Sphere
+from filters.geometry import Plane, Sphere
 from filters.surface.csg import combine_dense, combine_sparse
 from filters.surface.grid import GridTooLargeError
 from filters.kernels import SPLAT_KERNELS as KERNELS
@@ -140,24 +140,6 @@ def test_interpolate_attributes_reproduces_constants():
     out = interpolate_attributes(np.array([[0.0, 0.0, 0.045]]), two, 0.01, np.array([1.0, 2.0]),
                                  cell_size=0.005)
     assert out[0] == 1.0
-
-
-def test_primitives_and_csg():
-    pts = np.array([[0.0, 0, 0], [2.0, 0, 0], [0.5, 0.5, 0.5], [0, 0, 3.0]])
-    s = Sphere((0, 0, 0), 1.0)
-    np.testing.assert_allclose(s(pts), [-1.0, 1.0, math.sqrt(0.75) - 1, 2.0])
-    b = Box((-1, -1, -1), (1, 1, 1))
-    np.testing.assert_allclose(b(pts), [-1.0, 1.0, -0.5, 2.0])
-    p = Plane((0, 0, 0.25), (0, 0, 2.0))
-    np.testing.assert_allclose(p(pts), [-0.25, -0.25, 0.25, 2.75])
-    np.testing.assert_allclose((s | p)(pts), np.minimum(s(pts), p(pts)))
-    np.testing.assert_allclose((s & p)(pts), np.maximum(s(pts), p(pts)))
-    np.testing.assert_allclose((b - s)(pts), np.maximum(b(pts), -s(pts)))
-    assert (b - s)(np.array([[0.0, 0.0, 0.0]]))[0] > 0  # hollow
-    with pytest.raises(ValueError):
-        Box((0, 0, 0), (0, 1, 1))
-    with pytest.raises(ValueError):
-        Plane(normal=(0, 0, 0))
 
 
 def test_csg_with_field_sparse_equals_dense():
