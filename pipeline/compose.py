@@ -8,6 +8,8 @@ from pathlib import Path
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
+from filters.validation import check_bool
+
 from .algorithm import connect_chain, update
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, export_xdmf, read_frame
@@ -58,7 +60,8 @@ class Flow:
             raise TypeError(f"source must be a SimulationSource, got {type(source).__name__}")
         self.source = source
         self.stages: dict[str, Stage] = {}
-        self.stages[_check_name(name)] = Stage(name, source, [source], write, xdmf)
+        self.stages[_check_name(name)] = Stage(name, source, [source], check_bool("write", write),
+                                               check_bool("xdmf", xdmf))
         self._primary = name
 
     @property
@@ -92,6 +95,8 @@ class Flow:
         _check_name(name)
         if name in self.stages:
             raise ValueError(f"an output named {name!r} exists already; names: {sorted(self.stages)}")
+        write = check_bool("write", write)
+        xdmf = check_bool("xdmf", xdmf)
         input = input or self._primary
         if input not in self.stages:
             raise ValueError(f"input must be one of {sorted(self.stages)}, got {input!r}")
