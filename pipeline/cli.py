@@ -133,7 +133,7 @@ def _surface_options(args, source: Path) -> dict:
     """Options of the surface: the producing run's (its ``scene.json`` beside the particles,
     when there is one), then the command line's flags and ``--option`` assignments."""
     from .assignments import parse_assignments
-    from .surface import SURFACE_PARAMETERS, surface_options_from_record
+    from .surface_options import SURFACE_PARAMETERS, surface_options_from_record
 
     options = {}
     record_path = source.parent / "scene.json"

@@ -27,9 +27,8 @@ them). Stages that need the particles read them on their second input port
     vtkPolyDataNormals without splitting (the mesh stays watertight).
 
 :func:`surface_stages` builds the chain from one set of options whose defaults,
-:data:`SURFACE_DEFAULTS`, are the liquid scenes' surface and ``blobflow surface``'s;
-:func:`liquid_surface_options` gives a liquid's radius and tank, the same for the scenes and, from
-a run record (:func:`surface_options_from_record`), for ``blobflow surface``.
+:data:`pipeline.surface_options.SURFACE_DEFAULTS`, are the liquid scenes' surface and
+``blobflow surface``'s (:mod:`pipeline.surface_options`).
 """
 
 from __future__ import annotations
@@ -42,7 +41,7 @@ from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkImageData, vtkParti
                                            vtkPointSet, vtkPolyData)
 from vtkmodules.vtkFiltersCore import vtkPolyDataNormals, vtkWindowedSincPolyDataFilter
 
-from filters.geometry import Box, Shape
+from filters.geometry import Shape
 from filters.kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from filters.surface.anisotropy import check_anisotropy
 from filters.surface.attributes import interpolate_attributes
@@ -55,8 +54,8 @@ from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_s
 from filters.validation import check_bool, check_choice, check_int, check_range
 
 from .algorithm import Algorithm, ParticleStage
-from .assignments import Parameter
 from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
+from .surface_options import SURFACE_DEFAULTS
 
 __all__ = [
     "MetaballSplat",
@@ -65,25 +64,8 @@ __all__ = [
     "InterpolateAttributes",
     "Smooth",
     "Normals",
-    "SURFACE_DEFAULTS",
-    "SURFACE_PARAMETERS",
     "surface_stages",
-    "liquid_surface_options",
-    "surface_options_from_record",
 ]
-
-#: Defaults of :func:`surface_stages`: the surface of the liquid scenes and of ``blobflow
-#: surface`` (particle radius 0.01 m unless the run record gives the spacing).
-SURFACE_DEFAULTS = {
-    "radius": 0.01,
-    "kernel": "sph",
-    "anisotropic": True,
-    "feature_smoothing": 25,
-    "smooth_iterations": 30,
-    "pass_band": 0.01,
-    "normals": True,
-    "attributes": ("velocity",),
-}
 
 
 # --------------------------------------------------------------------------------------------
@@ -519,9 +501,9 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     """The chain particles -> surface as a list of algorithms.
 
     ``flow.add("surface", *surface_stages(radius=0.01), input="particles")``. The defaults
-    (:data:`SURFACE_DEFAULTS`) are the liquid scenes' surface: anisotropic ``sph`` kernels, 25
+    (:data:`pipeline.surface_options.SURFACE_DEFAULTS`) are the liquid scenes' surface: anisotropic ``sph`` kernels, 25
     sweeps of feature smoothing, 30 windowed-sinc iterations with pass band 0.01, normals,
-    ``velocity`` carried to the vertices (:func:`liquid_surface_options` adds a liquid's
+    ``velocity`` carried to the vertices (:func:`pipeline.surface_options.liquid_surface_options` adds a liquid's
     radius and tank).
 
     Parameters
@@ -578,63 +560,3 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     return stages
 
 
-#: Types of the options of :func:`surface_stages` (``blobflow surface --option NAME=VALUE``).
-SURFACE_PARAMETERS = {p.name: p for p in (
-    Parameter("radius", SURFACE_DEFAULTS["radius"], "particle radius (m)"),
-    Parameter("cell_size", None, "voxel edge (m)", kind="float"),
-    Parameter("kernel", SURFACE_DEFAULTS["kernel"], "splatting kernel"),
-    Parameter("anisotropic", SURFACE_DEFAULTS["anisotropic"], "anisotropic kernels"),
-    Parameter("feature_smoothing", SURFACE_DEFAULTS["feature_smoothing"], "feature sweeps"),
-    Parameter("smooth_iterations", SURFACE_DEFAULTS["smooth_iterations"], "windowed sinc"),
-    Parameter("pass_band", SURFACE_DEFAULTS["pass_band"], "windowed-sinc pass band"),
-    Parameter("normals", SURFACE_DEFAULTS["normals"], "point normals"),
-    Parameter("attributes", SURFACE_DEFAULTS["attributes"], "particle arrays carried",
-              kind="names"),
-    Parameter("support_r", None, "support radius / particle radius", kind="float"),
-    Parameter("blobbiness", 4.0, "blobby kernel's a"),
-    Parameter("radius_array", None, "point array of radii (m)", kind="str"),
-    Parameter("iso", None, "iso value", kind="float"),
-    Parameter("sparse", True, "sparse brick grid"),
-    Parameter("block_size", 8, "voxels per block edge"),
-    Parameter("brick_blocks", 4, "blocks per brick edge"),
-    Parameter("max_bytes", DEFAULT_MAX_BYTES, "grid memory budget (bytes)"),
-    Parameter("operation", "intersection", "how the tank combines with the field"),
-)}
-
-
-def liquid_surface_options(spacing: float, tank_lo=None, tank_hi=None, **options) -> dict:
-    """Options of :func:`surface_stages` for a liquid of particle spacing ``spacing`` (m).
-
-    The particle radius is half the spacing (kernel support of two spacings, as splashsurf
-    uses); with a tank, the field is intersected with its inner box ``[tank_lo, tank_hi]`` (m),
-    so the surface is flat where the liquid touches a wall instead of bulging through it; the
-    rest are :data:`SURFACE_DEFAULTS` unless given in ``options``.
-    """
-    spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
-    result = {"radius": 0.5 * spacing}
-    if tank_lo is not None or tank_hi is not None:
-        result["implicit"] = Box(tank_lo, tank_hi)
-        result["operation"] = "intersection"
-    result.update(options)
-    return result
-
-
-def surface_options_from_record(record: dict) -> dict:
-    """The surface options of the run that wrote a record (``scene.json``), for a liquid.
-
-    From the scene's parameters: the particle radius from ``spacing``, the tank
-    (``tank_length``, ``tank_width`` or ``depth``, ``tank_height``, from the origin) as the
-    clipping box, and ``anisotropic``, ``smooth_iterations`` and ``feature_smoothing`` when the
-    scene has them (:func:`liquid_surface_options`: the surface the liquid scenes write). An
-    empty dict when the record has no ``spacing``.
-    """
-    params = record.get("parameters") if isinstance(record, dict) else None
-    if not isinstance(params, dict) or "spacing" not in params:
-        return {}
-    width = params.get("tank_width", params.get("depth"))
-    tank = (params.get("tank_length"), width, params.get("tank_height"))
-    corners = ((0.0, 0.0, 0.0), tuple(float(v) for v in tank)) if None not in tank else (None,
-                                                                                         None)
-    options = {k: params[k] for k in ("anisotropic", "smooth_iterations", "feature_smoothing")
-               if k in params}
-    return liquid_surface_options(float(params["spacing"]), *corners, **options)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from filters.validation import check_bool, check_int
 from pipeline import Flow
-from pipeline.surface import liquid_surface_options, surface_stages
+from pipeline.surface import surface_stages
+from pipeline.surface_options import liquid_surface_options
 
 
 def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
@@ -12,10 +13,10 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
                        anisotropic: bool = True) -> None:
     """Add a ``surface`` output: SPH-field splatting of the particles, contoured and smoothed.
 
-    :func:`pipeline.surface.liquid_surface_options`: the particle radius is half the spacing
-    and the field is intersected with the tank's inner box; the other stages are those of
-    :data:`pipeline.surface.SURFACE_DEFAULTS` (``blobflow surface`` rebuilds the same surface
-    from the particle series and the run record).
+    :func:`pipeline.surface_options.liquid_surface_options`: the particle radius is half the
+    spacing and the field is intersected with the tank's inner box; the other stages are those
+    of :data:`pipeline.surface_options.SURFACE_DEFAULTS` (``blobflow surface`` rebuilds the same
+    surface from the particle series and the run record).
 
     Parameters
     ----------

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from .dense3 import invert3_into
-from .operator import apply_pair_block
+from .operator import apply_pair_block, diag_product, start_norm
 
 __all__ = ["pcg_blocks"]
 
@@ -63,13 +63,7 @@ def _op_update_matvec(pairs, free, blocks, diag, z, beta, p, y):
         p[i, 0] = p0
         p[i, 1] = p1
         p[i, 2] = p2
-        y0 = diag[i, 0, 0] * p0 + diag[i, 0, 1] * p1 + diag[i, 0, 2] * p2
-        y1 = diag[i, 1, 0] * p0 + diag[i, 1, 1] * p1 + diag[i, 1, 2] * p2
-        y2 = diag[i, 2, 0] * p0 + diag[i, 2, 1] * p1 + diag[i, 2, 2] * p2
-        y[i, 0] = y0
-        y[i, 1] = y1
-        y[i, 2] = y2
-        acc += p0 * y0 + p1 * y1 + p2 * y2
+        acc += diag_product(diag, y, i, p0, p1, p2)
     # p is zero at pinned particles (see _pcg_operator), so no masks here; the rows of pinned
     # particles in y receive spring terms that the caller discards.
     for s in range(pairs.shape[0]):
@@ -179,15 +173,8 @@ def pcg_blocks(pairs, free, blocks, diag, lower, upper, b, x, tol, max_iter, sgs
     z = np.zeros((n, 3))
     p_vec = np.zeros((n, 3))
     ap = np.empty((n, 3))
-    bb = 0.0
-    for i in range(n):
-        for k in range(3):
-            bb += b[i, k] * b[i, k]
-    bnorm = math.sqrt(bb)
+    bnorm = start_norm(b, x)
     if bnorm == 0.0:
-        for i in range(n):
-            for k in range(3):
-                x[i, k] = 0.0
         return 0, 0.0
     # Pinned rows are the identity: x_i = b_i there, solved up front.  CG then runs on the free
     # particles with zeros at the pinned ones (r, z and p stay zero there because the pinned rows

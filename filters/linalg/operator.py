@@ -11,10 +11,39 @@ of about 39 CSR non-zeros with their column indices. The conjugate-gradient solv
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
-__all__ = ["BlockOperator", "block_matvec", "apply_pair_block"]
+__all__ = ["BlockOperator", "block_matvec", "apply_pair_block", "diag_product", "start_norm"]
+
+
+@njit(cache=True, inline="always")
+def start_norm(b, x):
+    """``|b|`` of a right-hand side (N, 3); when it is 0, ``x`` is set to 0 (the solution)."""
+    bb = 0.0
+    for i in range(b.shape[0]):
+        for k in range(3):
+            bb += b[i, k] * b[i, k]
+    bnorm = math.sqrt(bb)
+    if bnorm == 0.0:
+        for i in range(x.shape[0]):
+            for k in range(3):
+                x[i, k] = 0.0
+    return bnorm
+
+
+@njit(cache=True, inline="always")
+def diag_product(diag, y, i, p0, p1, p2):
+    """``y[i] = D_i p_i`` for the particle block ``diag[i]``; returns ``p_i . D_i p_i``."""
+    y0 = diag[i, 0, 0] * p0 + diag[i, 0, 1] * p1 + diag[i, 0, 2] * p2
+    y1 = diag[i, 1, 0] * p0 + diag[i, 1, 1] * p1 + diag[i, 1, 2] * p2
+    y2 = diag[i, 2, 0] * p0 + diag[i, 2, 1] * p1 + diag[i, 2, 2] * p2
+    y[i, 0] = y0
+    y[i, 1] = y1
+    y[i, 2] = y2
+    return p0 * y0 + p1 * y1 + p2 * y2
 
 
 @njit(cache=True)
@@ -23,16 +52,7 @@ def block_matvec(pairs, free, blocks, diag, p, y):
     returns ``p . H p``."""
     acc = 0.0
     for i in range(p.shape[0]):
-        p0 = p[i, 0]
-        p1 = p[i, 1]
-        p2 = p[i, 2]
-        y0 = diag[i, 0, 0] * p0 + diag[i, 0, 1] * p1 + diag[i, 0, 2] * p2
-        y1 = diag[i, 1, 0] * p0 + diag[i, 1, 1] * p1 + diag[i, 1, 2] * p2
-        y2 = diag[i, 2, 0] * p0 + diag[i, 2, 1] * p1 + diag[i, 2, 2] * p2
-        y[i, 0] = y0
-        y[i, 1] = y1
-        y[i, 2] = y2
-        acc += p0 * y0 + p1 * y1 + p2 * y2
+        acc += diag_product(diag, y, i, p[i, 0], p[i, 1], p[i, 2])
     for s in range(pairs.shape[0]):
         a = pairs[s, 0]
         b = pairs[s, 1]
@@ -41,9 +61,7 @@ def block_matvec(pairs, free, blocks, diag, p, y):
         d0 = fa * p[a, 0] - fb * p[b, 0]
         d1 = fa * p[a, 1] - fb * p[b, 1]
         d2 = fa * p[a, 2] - fb * p[b, 2]
-        k0 = blocks[s, 0] * d0 + blocks[s, 1] * d1 + blocks[s, 2] * d2
-        k1 = blocks[s, 1] * d0 + blocks[s, 3] * d1 + blocks[s, 4] * d2
-        k2 = blocks[s, 2] * d0 + blocks[s, 4] * d1 + blocks[s, 5] * d2
+        k0, k1, k2 = apply_pair_block(blocks, s, d0, d1, d2)
         acc += d0 * k0 + d1 * k1 + d2 * k2
         y[a, 0] += fa * k0
         y[a, 1] += fa * k1

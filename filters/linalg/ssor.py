@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .operator import apply_pair_block, block_matvec
+from .operator import apply_pair_block, block_matvec, start_norm
 
 __all__ = ["pcg_ssor", "SSORWorkspace", "DEFAULT_OMEGA"]
 
@@ -334,15 +334,8 @@ def pcg_ssor(pairs, free, blocks, diag, upper, b, x, tol, max_iter, omega, work,
         ublk = blocks
     _ssor_setup(free, blocks, diag, up_ptr, up_spring, up_other, omega, dsc, dinv, ublk,
                 not ordered, acc6)
-    bb = 0.0
-    for i in range(n):
-        for k in range(3):
-            bb += b[i, k] * b[i, k]
-    bnorm = math.sqrt(bb)
+    bnorm = start_norm(b, x)
     if bnorm == 0.0:
-        for i in range(n):
-            for k in range(3):
-                x[i, k] = 0.0
         return 0, 0.0
     for i in range(n):
         if free[i] == 0.0:
