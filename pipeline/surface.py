@@ -420,7 +420,32 @@ class InterpolateAttributes(ParticleStage):
         return 1
 
 
-class Smooth(Algorithm):
+class _MeshFilter(Algorithm):
+    """A vtkPolyData -> vtkPolyData stage wrapping a VTK filter; a mesh without triangles (or a
+    stage switched off) passes through."""
+
+    def __init__(self):
+        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
+                           outputType="vtkPolyData")
+
+    def _filter(self):  # pragma: no cover - abstract
+        """The configured VTK filter, or None to pass the mesh through."""
+        raise NotImplementedError
+
+    def RequestData(self, request, inInfo, outInfo):
+        inp = vtkPolyData.GetData(inInfo[0], 0)
+        out = vtkPolyData.GetData(outInfo, 0)
+        f = self._filter() if inp.GetNumberOfPolys() else None
+        if f is None:
+            out.ShallowCopy(inp)
+            return 1
+        f.SetInputData(inp)
+        f.Update()
+        out.ShallowCopy(f.GetOutput())
+        return 1
+
+
+class Smooth(_MeshFilter):
     """Windowed-sinc smoothing (Taubin, Zhang & Golub 1996) that keeps the enclosed volume.
 
     Parameters
@@ -436,52 +461,32 @@ class Smooth(Algorithm):
     def __init__(self, iterations: int = 100, pass_band: float = 0.001):
         self.iterations = check_int("iterations", iterations, 0, 1000)
         self.pass_band = check_range("pass_band", pass_band, 0.0, 2.0, low_inclusive=False)
-        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
-                           outputType="vtkPolyData")
+        _MeshFilter.__init__(self)
 
-    def RequestData(self, request, inInfo, outInfo):
-        inp = vtkPolyData.GetData(inInfo[0], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        if inp.GetNumberOfPolys() == 0 or self.iterations == 0:
-            out.ShallowCopy(inp)
-            return 1
+    def _filter(self):
+        if self.iterations == 0:
+            return None
         f = vtkWindowedSincPolyDataFilter()
-        f.SetInputData(inp)
         f.SetNumberOfIterations(self.iterations)
         f.SetPassBand(self.pass_band)
         f.NormalizeCoordinatesOn()
         f.BoundarySmoothingOff()
         f.FeatureEdgeSmoothingOff()
         f.NonManifoldSmoothingOn()
-        f.Update()
-        out.ShallowCopy(f.GetOutput())
-        return 1
+        return f
 
 
-class Normals(Algorithm):
+class Normals(_MeshFilter):
     """Point normals (vtkPolyDataNormals) without splitting sharp edges (stays watertight)."""
 
-    def __init__(self):
-        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
-                           outputType="vtkPolyData")
-
-    def RequestData(self, request, inInfo, outInfo):
-        inp = vtkPolyData.GetData(inInfo[0], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        if inp.GetNumberOfPolys() == 0:
-            out.ShallowCopy(inp)
-            return 1
+    def _filter(self):
         f = vtkPolyDataNormals()
-        f.SetInputData(inp)
         f.SplittingOff()
         f.ConsistencyOff()
         f.AutoOrientNormalsOff()
         f.ComputePointNormalsOn()
         f.ComputeCellNormalsOff()
-        f.Update()
-        out.ShallowCopy(f.GetOutput())
-        return 1
-
+        return f
 
 # --------------------------------------------------------------------------------------------
 # The chain
