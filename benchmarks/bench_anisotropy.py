@@ -3,7 +3,7 @@
 The flatness / sharpness / cost benchmark of issue 8, one run, side by side on identical
 particles (spacing s = 0.02 m, particle radius 0.01 m, cell 0.005 m, SPH kernel of support
 4 r, iso 0.6 -- the settings of ``bench_surface.py``; the anisotropic field uses its calibrated
-iso 0.51, see ``filters.splat_anisotropic.ANISOTROPIC_ISO``). ``bench_surface.py --flatness``
+iso 0.51, see ``filters.surface.ellipsoids.ANISOTROPIC_ISO``). ``bench_surface.py --flatness``
 calls :func:`run_flatness`; this file also runs alone.
 
 Cases:
@@ -28,12 +28,12 @@ layer, where the lattice's cells end; for the SPH pool it follows the settled pa
 than the initial volume (the weakly compressible solver leaves the column 0.2 spacings lower
 than ``N s^3 / A``, and its layers closer than s near the top).
 
-Methods: ``isotropic`` (``filters.splat.splat_sparse`` + ``contour_sparse``), ``isotropic+smooth``
+Methods: ``isotropic`` (``filters.surface.splat.splat_sparse`` + ``contour_sparse``), ``isotropic+smooth``
 (the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100 iterations, pass band
-0.001), ``anisotropic`` (``filters.splat_anisotropic.splat_sparse_anisotropic`` defaults +
+0.001), ``anisotropic`` (``filters.surface.splat.splat_sparse_anisotropic`` defaults +
 ``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
 ``isotropic+feature`` / ``anisotropic+feature`` (+ 25 sweeps of feature-weighted Laplacian
-smoothing, :func:`filters.mesh_smoothing.smooth_surface`, the ``MarchingCubes`` option),
+smoothing, :func:`filters.surface.smoothing.smooth_surface`, the ``MarchingCubes`` option),
 ``splashsurf_raw`` (``pysplashsurf.reconstruct_surface``, smoothing length 2 r, cube 0.5 r, iso
 0.6, float32) and ``splashsurf_smoothed`` (``pysplashsurf.reconstruction_pipeline`` with its
 weighted Laplacian mesh smoothing, 25 iterations, Löschner et al. 2023). Per pool also
@@ -69,11 +69,12 @@ RESULTS = ROOT / "results"
 if str(ROOT.parent) not in sys.path:
     sys.path.insert(0, str(ROOT.parent))
 
-from filters.anisotropy import DEFAULTS as ANISO_DEFAULTS  # noqa: E402
-from filters.anisotropy import anisotropic_kernels  # noqa: E402
-from filters.splat import splat_sparse  # noqa: E402
-from filters.splat_anisotropic import ANISOTROPIC_ISO, splat_sparse_anisotropic  # noqa: E402
-from filters.surface_mesh import mesh_stats  # noqa: E402
+from filters.surface.anisotropy import DEFAULTS as ANISO_DEFAULTS  # noqa: E402
+from filters.surface.anisotropy import anisotropic_kernels  # noqa: E402
+from filters.surface.splat import splat_sparse  # noqa: E402
+from filters.surface.ellipsoids import ANISOTROPIC_ISO  # noqa: E402
+from filters.surface.splat import splat_sparse_anisotropic  # noqa: E402
+from filters.surface.mesh import mesh_stats  # noqa: E402
 
 S = 0.02
 R = 0.01
@@ -106,13 +107,14 @@ def ball(radius, jitter=0.05, seed=0):
 
 
 def _contour(grid):
-    from pipeline.surface import contour_sparse
+    from pipeline.contour import contour_sparse
 
     return contour_sparse(grid)
 
 
 def _smooth(points, tris):
-    from pipeline.surface import Smooth, mesh_to_polydata, polydata_to_mesh
+    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface import Smooth
 
     s = Smooth()
     s.SetInputDataObject(mesh_to_polydata(points, tris))
@@ -137,7 +139,7 @@ def anisotropic_smooth(x):
 
 
 def _feature(x, points, tris):
-    from filters.mesh_smoothing import smooth_surface
+    from filters.surface.smoothing import smooth_surface
 
     return smooth_surface(points, tris, x, R), tris
 
@@ -255,7 +257,7 @@ def cube_sharpness(points, lo, hi):
 def sph_pool(seconds=1.5, shape=(20, 20, 8)):
     """A pool of ``shape`` particles settled by SPHLiquid in a closed tank that it fills
     horizontally; returns (positions, info)."""
-    from filters.boundary import box_boundary
+    from filters.sph.boundary import box_boundary
     from filters.sph import SPHLiquid
 
     nx, ny, nz = shape
@@ -282,8 +284,9 @@ def scene_surface(x, tank_lo, tank_hi, anisotropic):
     feature-weighted smoothing, ``Smooth(30, 0.01)``."""
     import pyvista as pv
 
-    from filters.implicit import Box
-    from pipeline.surface import polydata_to_mesh, surface_stages
+    from filters.geometry import Box
+    from pipeline.contour import polydata_to_mesh
+    from pipeline.surface import surface_stages
 
     stages = surface_stages(radius=R, smooth_iterations=30, pass_band=0.01, feature_smoothing=25,
                             implicit=Box(tank_lo, tank_hi), operation="intersection",
@@ -373,7 +376,7 @@ def run_flatness(report=print, *, write: bool = True, include_sph: bool = True,
                           "kernel": "sph, support 4 r",
                           "anisotropy": dict(ANISO_DEFAULTS),
                           "smooth": "pipeline.surface.Smooth defaults (100, pass band 0.001)",
-                          "feature": "filters.mesh_smoothing.smooth_surface defaults (25 "
+                          "feature": "filters.surface.smoothing.smooth_surface defaults (25 "
                                      "sweeps, reach 8 r, low 0.5, high 1)",
                           "splashsurf": "smoothing length 2 r, cube 0.5 r, float32; smoothed: "
                                         "reconstruction_pipeline mesh_smoothing_iters=25, "

@@ -35,7 +35,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from filters.noise import CurlNoise, fbm3, perlin3, perlin3_gradient
+from filters.fields import CurlNoise
+from filters.noise import fbm3, perlin3, perlin3_gradient
 
 RESULTS = Path(__file__).resolve().parent / "results" / "noise.json"
 

@@ -96,7 +96,7 @@ def wcsph_speed_of_sound(n_target):
 
 
 def blobflow_dam_break(n_target, solver, **kw):
-    from filters.sph_scenarios import dam_break_liquid
+    from filters.sph.scenarios import dam_break_liquid
 
     a, depth, hcol, length, height = tank(n_target)
     if solver == "dfsph":
@@ -283,7 +283,8 @@ def part_nsearch(compare_passes=True):
     from scipy.spatial import cKDTree
 
     from filters.kernels import cubic_dw, cubic_w
-    from filters.neighbors import NeighborSearch, _counting_sort, _grid_keys, grid_query_padded
+    from filters.binning import cell_keys as _grid_keys, counting_sort as _counting_sort
+    from filters.neighbors import NeighborSearch, grid_query_padded
 
     out = {}
     s = 0.01

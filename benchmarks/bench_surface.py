@@ -16,7 +16,7 @@ Tools, each in its own subprocess (peak resident memory per tool):
 
 * ``pysplashsurf`` (Löschner et al. 2023) ``reconstruct_surface``: particle radius 0.01 m,
   smoothing length 2.0 and cube size 0.5 (multiples of the radius), iso 0.6, float32 input.
-* ``blobflow``: ``filters.splat.splat_sparse`` (SPH kernel, support 4 r = 2 x smoothing
+* ``blobflow``: ``filters.surface.splat.splat_sparse`` (SPH kernel, support 4 r = 2 x smoothing
   length, iso 0.6, cell 0.005 m) + ``pipeline.surface.contour_sparse`` (flying edges per brick,
   stitched); smoothing (``Smooth`` defaults) is timed separately and not part of the ratio,
   because ``reconstruct_surface`` does no post-processing.
@@ -143,8 +143,8 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
 
         warm = lambda: None  # noqa: E731
     elif tool == "blobflow":
-        from filters.splat import splat_sparse
-        from pipeline.surface import contour_sparse
+        from filters.surface.splat import splat_sparse
+        from pipeline.contour import contour_sparse
 
         def run():
             t0 = time.perf_counter()
@@ -249,8 +249,9 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
 
 def measure_mesh(row: dict, mesh_path: str) -> None:
     """Mesh measures (and, for blobflow, the smoothing stage) in the parent process."""
-    from filters.surface_mesh import mesh_stats
-    from pipeline.surface import Smooth, mesh_to_polydata, polydata_to_mesh
+    from filters.surface.mesh import mesh_stats
+    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface import Smooth
 
     data = np.load(mesh_path)
     verts, tris = data["vertices"].astype(np.float64), data["triangles"]

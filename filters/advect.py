@@ -7,15 +7,15 @@ Hourihan & Nordenstam 2007, plus a rising wind) with one of four integrators
 * ``"euler"``: forward Euler, ``x += h v(x, t)`` (first order; spirals *out* of a rotation),
 * ``"rk2"``: the explicit midpoint rule (second order),
 * ``"rk4"``: the classical Runge-Kutta method (fourth order),
-* ``"backward_euler"``: the linearised (simplified) backward Euler step of Baraff & Witkin
+* ``"linearized_backward_euler"``: the linearised backward Euler step of Baraff & Witkin
   (1998), ``(I - h dv/dx) dx = h v(x, t + h)``, one 3x3 solve per particle with the field's
   analytic Jacobian (first order, unconditionally stable; spirals *in* a rotation).
 
 Particles come from a :class:`BoxEmitter` (a rate in particles per second, lifetimes, birth
 times jittered within the step so that the stream does not come out in layers), die when their
 age exceeds their lifetime, and are pushed out of colliders (plane, sphere and spherical
-container signed-distance functions from :mod:`filters.noise`).  Per-particle ``size`` and
-``color`` come from noise at the birth position (:func:`filters.fields.noise_variation`).
+container shapes of :mod:`filters.geometry`).  Per-particle ``size`` and
+``color`` come from noise at the birth position (:func:`filters.noise.noise_variation`).
 
 Everything random comes from a counter-based generator (SplitMix64; Steele, Lea & Flood 2014)
 whose seed and counter live in the state (``extra["rng"]``), together with the emitter's
@@ -31,15 +31,30 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from .fields import CurlNoiseVelocity, Field, field_point, field_point_jacobian, noise_variation
-from .noise import CurlNoise, pack_colliders, sdf_point
+from .fields import Field, field_point, field_point_jacobian
+from .geometry import pack_shapes, packed_distance
+from .linalg.dense3 import implicit_step3
+from .noise import noise_variation
 from .simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
 from .validation import check_choice, check_finite_vector, check_int, check_range
 
-__all__ = ["BoxEmitter", "NoiseAdvection", "INTEGRATORS"]
+__all__ = ["BoxEmitter", "NoiseAdvection", "INTEGRATORS", "check_integrator"]
 
 #: Names of the integrators, in the order of their kernel codes.
-INTEGRATORS = ("euler", "rk2", "rk4", "backward_euler")
+#: The names of :mod:`filters.integrators` where they are the same scheme; a full backward Euler
+#: solve (``"backward_euler"``) is not offered for advection.
+INTEGRATORS = ("euler", "rk2", "rk4", "linearized_backward_euler")
+
+
+def check_integrator(name: str) -> str:
+    """Return ``name`` if it is one of :data:`INTEGRATORS`, else ValueError (naming the current
+    name of the former ``"backward_euler"`` of advection, ``"linearized_backward_euler"``)."""
+    if name == "backward_euler":
+        raise ValueError("integrator 'backward_euler' (a step solved to convergence) is not "
+                         "offered for advection; the linearised step is "
+                         "'linearized_backward_euler' (formerly 'backward_euler'); integrator "
+                         f"must be one of {', '.join(map(repr, INTEGRATORS))}")
+    return check_choice("integrator", name, INTEGRATORS)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -115,35 +130,14 @@ def _advect(kinds, params, tables, colliders, pos, h, t0, method):
             J = np.empty((3, 3))
             v0, v1, v2 = field_point_jacobian(kinds, params, tables, colliders, x, y, z, 0.0,
                                               0.0, 0.0, t + hi, J)
-            # A = I - h J; solve A dx = h v by Cramer's rule (adjugate)
-            m00 = 1.0 - hi * J[0, 0]
-            m01 = -hi * J[0, 1]
-            m02 = -hi * J[0, 2]
-            m10 = -hi * J[1, 0]
-            m11 = 1.0 - hi * J[1, 1]
-            m12 = -hi * J[1, 2]
-            m20 = -hi * J[2, 0]
-            m21 = -hi * J[2, 1]
-            m22 = 1.0 - hi * J[2, 2]
-            c00 = m11 * m22 - m12 * m21
-            c01 = m02 * m21 - m01 * m22
-            c02 = m01 * m12 - m02 * m11
-            c10 = m12 * m20 - m10 * m22
-            c11 = m00 * m22 - m02 * m20
-            c12 = m02 * m10 - m00 * m12
-            c20 = m10 * m21 - m11 * m20
-            c21 = m01 * m20 - m00 * m21
-            c22 = m00 * m11 - m01 * m10
-            det = m00 * c00 + m01 * c10 + m02 * c20
+            # (I - h J) dx = h v by Cramer's rule
+            x1, y1, z1, det = implicit_step3(J, hi, x, y, z, v0, v1, v2)
             if not (abs(det) > 1e-12):
                 bad += 1
                 continue
-            r0 = hi * v0 / det
-            r1 = hi * v1 / det
-            r2 = hi * v2 / det
-            pos[i, 0] = x + c00 * r0 + c01 * r1 + c02 * r2
-            pos[i, 1] = y + c10 * r0 + c11 * r1 + c12 * r2
-            pos[i, 2] = z + c20 * r0 + c21 * r1 + c22 * r2
+            pos[i, 0] = x1
+            pos[i, 1] = y1
+            pos[i, 2] = z1
     return bad
 
 
@@ -152,7 +146,7 @@ def _push_out(colliders, pos, margin):
     """Move particles closer than ``margin`` to a collider onto the ``d = margin`` surface."""
     for i in prange(pos.shape[0]):
         for _ in range(4):  # a few passes resolve corners between colliders
-            d, nx, ny, nz, c = sdf_point(colliders, pos[i, 0], pos[i, 1], pos[i, 2])
+            d, nx, ny, nz, c = packed_distance(colliders, pos[i, 0], pos[i, 1], pos[i, 2])
             if c < 0 or d >= margin:
                 break
             pos[i, 0] += (margin - d) * nx
@@ -235,7 +229,7 @@ class NoiseAdvection(Simulation):
 
     Parameters
     ----------
-    field : filters.fields.Field or filters.noise.CurlNoise
+    field : filters.fields.Field
         Velocity field ``v(x, t)`` (m/s); velocity-dependent terms see zero velocity.
     emitter : BoxEmitter, optional
         Source of new particles; ``None`` for a fixed set.
@@ -243,12 +237,11 @@ class NoiseAdvection(Simulation):
         Particles present at t = 0 (m); they live forever unless ``initial_lifetime`` is given.
     initial_lifetime : float
         Lifetime (s) of the initial particles, > 0 (default: infinite).
-    integrator : {"euler", "rk2", "rk4", "backward_euler"}
+    integrator : {"euler", "rk2", "rk4", "linearized_backward_euler"}
         Time integrator (see the module docstring).
-    colliders : sequence of filters.noise.PlaneSDF / SphereSDF / InsideSphereSDF, or a
-        filters.colliders.Colliders (planes and spheres)
+    colliders : Shape or sequence of filters.geometry.Plane / Sphere / ~Sphere
         Solids the particles are pushed out of after each step (to ``collider_margin``).  Give
-        the same colliders to a :class:`~filters.fields.CurlNoiseVelocity` with a
+        the same colliders to a :class:`~filters.fields.CurlNoise` with a
         ``ramp_distance`` to make the flow itself go around them.
     collider_margin : float
         Distance (m) >= 0 kept from collider surfaces.
@@ -281,17 +274,11 @@ class NoiseAdvection(Simulation):
                  collider_margin: float = 0.0, max_dt: float = 1.0 / 60.0,
                  max_particles: int = 1_000_000, size_range=(1.0, 1.0), color_range=(0.0, 1.0),
                  variation_frequency: float = 1.0, seed: int = 0):
-        if isinstance(field, CurlNoise):
-            field = CurlNoiseVelocity(
-                amplitude=field.amplitude, frequency=field.frequency, octaves=field.octaves,
-                lacunarity=field.lacunarity, gain=field.gain, seed=field.seed,
-                time_scale=field.time_scale, colliders=field.colliders,
-                ramp_distance=field.ramp_distance, base_velocity=field.base_velocity)
         if not isinstance(field, Field):
             raise TypeError(f"field must be a filters.fields.Field, got {type(field).__name__}")
         if emitter is not None and not isinstance(emitter, BoxEmitter):
             raise TypeError(f"emitter must be a BoxEmitter or None, got {type(emitter).__name__}")
-        check_choice("integrator", integrator, INTEGRATORS)
+        check_integrator(integrator)
         check_range("initial_lifetime", initial_lifetime, 0.0, math.inf, low_inclusive=False)
         check_range("collider_margin", collider_margin, 0.0, math.inf)
         self.max_dt = check_range("max_dt", max_dt, 0.0, math.inf, low_inclusive=False)
@@ -304,7 +291,7 @@ class NoiseAdvection(Simulation):
         check_range("variation_frequency", variation_frequency, 0.0, math.inf,
                     low_inclusive=False)
         seed = check_int("seed", seed, 0, (1 << 63) - 1)
-        packed_colliders = pack_colliders(colliders)
+        packed_colliders = pack_shapes(colliders)
         self.model = AdvectionModel(field, emitter, integrator, packed_colliders,
                                     float(collider_margin), int(max_particles), size_range,
                                     color_range, float(variation_frequency), seed)

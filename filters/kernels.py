@@ -1,12 +1,21 @@
-"""SPH smoothing kernels in 3-D, as scalar Numba functions and array versions.
+"""Every kernel of the package, in one place: SPH smoothing kernels and surface profiles.
 
-Every kernel here has compact support of radius ``h`` (the *support radius*, the convention of
-SPlisHSPlasH: ``W(r, h) = 0`` for ``r >= h``), is normalised so that its integral over R^3 is 1,
-and comes with its radial derivative ``dW/dr`` and its gradient
-``grad W(r_vec) = dW/dr * r_vec / |r_vec|``.
+Two families, each with its registry of names and the integer ids Numba code dispatches on:
 
-Kernels
--------
+* **Smoothing kernels** :data:`SMOOTHING_KERNELS` (the SPH solvers; :func:`kernel_id`): each has
+  compact support of radius ``h`` (the *support radius*, the convention of SPlisHSPlasH:
+  ``W(r, h) = 0`` for ``r >= h``), is normalised so that its integral over R^3 is 1, and comes
+  with its radial derivative ``dW/dr`` and its gradient ``grad W(r_vec) = dW/dr * r_vec / |r_vec|``.
+* **Surface profiles** :data:`SPLAT_KERNELS` (the metaball splats; :func:`splat_kernel_id`):
+  functions ``K(q^2)`` of the squared distance over the support radius, with peak 1 at ``q = 0``
+  and zero for ``q >= 1``, summed (or, for ``zhu_bridson``, averaged) into implicit fields.
+
+The cubic spline of Monaghan (1992) serves both: normalised as :func:`cubic_w` /
+:func:`cubic_dw`, and with peak 1 as :func:`spline_profile` (of ``q^2``) and its branch-free form
+:func:`spline_row` (of ``q``, for loops the compiler vectorises).
+
+Smoothing kernels
+-----------------
 ``cubic``
     Cubic B-spline of Monaghan & Lattanzio (1985) / Monaghan (1992) "Smoothed particle
     hydrodynamics", Annu. Rev. Astron. Astrophys. 30, written for support ``h`` (the usual
@@ -22,8 +31,24 @@ Kernels
     ACM TOG 32(6): a spline that repels below ``h / 2`` and attracts between ``h / 2`` and ``h``
     (not normalised; it is a force profile, not a smoothing kernel), and the adhesion profile.
 
-The scalar functions (``cubic_w(r, h)``, ``cubic_dw(r, h)``, ...) are ``@njit`` and meant to be
-called inside other Numba kernels; the array functions (:func:`kernel_value`,
+Surface profiles
+----------------
+``blobby``
+    Blinn (1982), "A generalization of algebraic surface drawing": a Gaussian ``exp(-a q^2)``,
+    shifted and scaled to vanish at ``q = 1``: ``(exp(-a q^2) - exp(-a)) / (1 - exp(-a))``
+    with ``a`` the *blobbiness*.
+``metaball``
+    Wyvill, McPheeters & Wyvill (1986), "Data structure for soft objects": the "soft object"
+    polynomial ``1 - 22/9 q^2 + 17/9 q^4 - 4/9 q^6``, which is 1/2 at ``q = 1/2``.
+``sph``
+    The cubic spline with peak 1; the splat sums it into the SPH volume (colour) field
+    ``sum_j V_j W_j`` (Löschner et al. 2023).
+``zhu_bridson``
+    Zhu & Bridson (2005), "Animating sand as a fluid": the weights ``(1 - q^2)^3`` of a weighted
+    mean centre and radius.
+
+The scalar functions (``cubic_w(r, h)``, ``spline_profile(q2)``, ...) are ``@njit`` and meant
+to be called inside other Numba kernels; the array functions (:func:`kernel_value`,
 :func:`kernel_gradient`, :func:`kernel_laplacian`) evaluate many distances at once.
 """
 
@@ -35,8 +60,15 @@ import numpy as np
 from numba import njit, prange
 
 __all__ = [
-    "KERNELS",
+    "SMOOTHING_KERNELS",
     "kernel_id",
+    "SPLAT_KERNELS",
+    "SPLAT_DEFAULTS",
+    "ZHU_BRIDSON",
+    "splat_kernel_id",
+    "spline_profile", "spline_row",
+    "splat_profile", "splat_row_profile",
+    "lone_particle_radius",
     "cubic_w", "cubic_dw", "kernel_w_dw",
     "wendland_w", "wendland_dw",
     "poly6_w", "poly6_dw", "poly6_laplacian",
@@ -48,17 +80,18 @@ __all__ = [
 ]
 
 #: Names of the normalised smoothing kernels and their integer ids used inside Numba code.
-KERNELS = {"cubic": 0, "wendland": 1, "poly6": 2, "spiky": 3, "viscosity": 4}
+SMOOTHING_KERNELS = {"cubic": 0, "wendland": 1, "poly6": 2, "spiky": 3, "viscosity": 4}
 
 _PI = math.pi
 
 
 def kernel_id(name: str) -> int:
-    """Integer id of the kernel ``name`` (one of :data:`KERNELS`), for Numba dispatch."""
-    if name not in KERNELS:
-        options = ", ".join(repr(k) for k in KERNELS)
+    """Integer id of the smoothing kernel ``name`` (one of :data:`SMOOTHING_KERNELS`), for Numba
+    dispatch."""
+    if name not in SMOOTHING_KERNELS:
+        options = ", ".join(repr(k) for k in SMOOTHING_KERNELS)
         raise ValueError(f"kernel must be one of {options}; got {name!r}")
-    return KERNELS[name]
+    return SMOOTHING_KERNELS[name]
 
 
 # --------------------------------------------------------------------------------------------
@@ -232,7 +265,7 @@ def adhesion_a(r, h):
 # --------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always", error_model="numpy")
 def kernel_w(kind, r, h):
-    """Value of kernel ``kind`` (an id of :data:`KERNELS`) at distance ``r``."""
+    """Value of kernel ``kind`` (an id of :data:`SMOOTHING_KERNELS`) at distance ``r``."""
     if kind == 0:
         return cubic_w(r, h)
     if kind == 1:
@@ -322,7 +355,7 @@ def kernel_value(name: str, r, h: float) -> np.ndarray:
     Parameters
     ----------
     name : str
-        One of :data:`KERNELS`.
+        One of :data:`SMOOTHING_KERNELS`.
     r : array_like of float, any shape
         Distances (m), >= 0.
     h : float
@@ -348,7 +381,7 @@ def kernel_gradient(name: str, d, h: float) -> np.ndarray:
     Parameters
     ----------
     name : str
-        One of :data:`KERNELS`.
+        One of :data:`SMOOTHING_KERNELS`.
     d : (M, 3) array_like
         Difference vectors (m).
     h : float
@@ -390,3 +423,141 @@ def kernel_laplacian(name: str, r, h: float) -> np.ndarray:
     out = np.empty_like(flat)
     _laplacians(kind, flat, h, out)
     return out.reshape(r.shape)
+
+
+# --------------------------------------------------------------------------------------------
+# Surface profiles: functions of q^2 with peak 1 at q = 0, zero for q >= 1.
+# --------------------------------------------------------------------------------------------
+#: Names of the surface profiles, in the order of their Numba ids.
+SPLAT_KERNELS = ("blobby", "metaball", "sph", "zhu_bridson")
+#: Numba id of the ``zhu_bridson`` profile (the one that is averaged, not summed).
+ZHU_BRIDSON = 3
+#: Default ``support`` (support radius / particle radius) and ``iso`` per surface profile.
+SPLAT_DEFAULTS = {
+    "blobby": {"support": 2.0, "iso": 0.5},
+    "metaball": {"support": 2.0, "iso": 0.5},
+    "sph": {"support": 4.0, "iso": 0.6},
+    "zhu_bridson": {"support": 2.0, "iso": 0.0},
+}
+
+
+def splat_kernel_id(name: str) -> int:
+    """Integer id of the surface profile ``name`` (one of :data:`SPLAT_KERNELS`)."""
+    if name not in SPLAT_KERNELS:
+        options = ", ".join(repr(k) for k in SPLAT_KERNELS)
+        raise ValueError(f"kernel must be one of {options}; got {name!r}")
+    return SPLAT_KERNELS.index(name)
+
+
+# The constants below are float32: with float32 arguments the arithmetic stays in float32 (the
+# splats' SIMD loops), with float64 arguments it is float64 (exact values, the same operations).
+@njit(cache=True, inline="always")
+def spline_profile(q2):
+    """Monaghan's cubic spline with peak 1 and support 1, as a function of ``q^2``.
+
+    ``1 - 6 q^2 + 6 q^3`` for ``q < 1/2``, ``2 (1 - q)^3`` up to 1, 0 beyond (``q2`` is clamped
+    to 1). Float32 in, float32 out; float64 in, float64 out.
+    """
+    q2 = min(q2, np.float32(1.0))
+    q = math.sqrt(q2)
+    inner = np.float32(1.0) - np.float32(6.0) * q2 + np.float32(6.0) * q2 * q
+    t = np.float32(1.0) - q
+    outer = np.float32(2.0) * t * t * t
+    return inner if q < np.float32(0.5) else outer
+
+
+@njit(cache=True, inline="always")
+def spline_row(q):
+    """:func:`spline_profile` without branches, of ``q`` (not ``q^2``), ``0 <= q``:
+    ``2 (1 - q)_+^3 - 8 (1/2 - q)_+^3``, for loops the compiler vectorises."""
+    e = max(np.float32(1.0) - q, np.float32(0.0))
+    f = max(np.float32(0.5) - q, np.float32(0.0))
+    return np.float32(2.0) * e * e * e - np.float32(8.0) * f * f * f
+
+
+@njit(cache=True, inline="always", fastmath=True)
+def splat_profile(kernel, q2, blob_a, blob_e):
+    """Surface profile ``kernel`` (a :func:`splat_kernel_id`) at ``q^2`` (clamped to 1).
+
+    ``blob_a`` is the blobbiness ``a`` and ``blob_e = exp(-a)`` (used by ``blobby`` only).
+    """
+    q2 = min(q2, np.float32(1.0))
+    if kernel == 2:
+        return spline_profile(q2)
+    if kernel == 1:
+        return np.float32(1.0) + q2 * (np.float32(-22.0 / 9.0) + q2 * (
+            np.float32(17.0 / 9.0) - np.float32(4.0 / 9.0) * q2))
+    if kernel == 0:
+        return (math.exp(-blob_a * q2) - blob_e) / (np.float32(1.0) - blob_e)
+    t = np.float32(1.0) - q2
+    return t * t * t
+
+
+@njit(cache=True, inline="always", fastmath=True)
+def splat_row_profile(kernel, q2, blob_a, blob_e):
+    """Branch-free :func:`splat_profile` of the summed profiles (``sph``, ``metaball``,
+    ``blobby``) for SIMD loops; ``q2`` already clamped to <= 1."""
+    if kernel == 2:
+        return spline_row(np.sqrt(q2))
+    if kernel == 1:
+        return np.float32(1.0) + q2 * (np.float32(-22.0 / 9.0) + q2 * (
+            np.float32(17.0 / 9.0) - np.float32(4.0 / 9.0) * q2))
+    return (np.exp(-blob_a * q2) - blob_e) / (np.float32(1.0) - blob_e)
+
+
+def _check_positive(name, value, high=math.inf):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    value = float(value)
+    if not (0.0 < value <= high):
+        raise ValueError(f"{name} must be in (0, {high:g}], got {value!r}")
+    return value
+
+
+def lone_particle_radius(kernel: str = "sph", radius: float = 1.0, *, support_r: float | None = None,
+                         iso: float | None = None, blobbiness: float = 4.0) -> float:
+    """Radius (m) of the iso-surface of one isolated particle, from the profile alone.
+
+    For the summed profiles it is ``q* h`` with ``K(q*) = iso`` (for ``sph`` the density of a
+    lone particle is ``m W(0)``, so ``f = W(r) / W(0)``); for ``zhu_bridson`` it is the particle
+    radius. Solved by bisection to machine precision.
+
+    Parameters
+    ----------
+    kernel : str
+        One of :data:`SPLAT_KERNELS`.
+    radius : float
+        Particle radius ``r`` (m), > 0.
+    support_r : float, optional
+        Support radius over particle radius, in (0, 1000]; default per profile
+        (:data:`SPLAT_DEFAULTS`).
+    iso : float, optional
+        Iso value of the summed field, > 0; default per profile.
+    blobbiness : float
+        ``a`` of the blobby profile, in (0, 100].
+
+    Returns
+    -------
+    float
+        The iso-surface radius (m); 0 if ``iso >= 1`` (no surface).
+    """
+    kid = splat_kernel_id(kernel)
+    radius = _check_positive("radius", radius)
+    support_r = SPLAT_DEFAULTS[kernel]["support"] if support_r is None else support_r
+    support_r = _check_positive("support_r", support_r, 1e3)
+    iso = SPLAT_DEFAULTS[kernel]["iso"] if iso is None else iso
+    blobbiness = _check_positive("blobbiness", blobbiness, 100.0)
+    if kernel == "zhu_bridson":
+        return radius
+    iso = _check_positive("iso", iso)
+    if iso >= 1.0:
+        return 0.0
+    e = math.exp(-blobbiness)
+    lo, hi = 0.0, 1.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if splat_profile(kid, mid * mid, blobbiness, e) > iso:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi) * support_r * radius

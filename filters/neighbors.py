@@ -3,10 +3,8 @@
 Three backends behind one interface, :class:`NeighborSearch`:
 
 ``"grid"``
-    A uniform grid of cubic cells of edge ``radius`` over the points' bounding box, built by a
-    parallel, stable counting sort (each thread counts its chunk of points per cell, one prefix
-    sum over (cell, chunk), each thread scatters its chunk) -- the method of Green (2008)
-    "Particle simulation using CUDA" and of Hoetzlein (2014) "Fast fixed-radius nearest neighbors".
+    A uniform grid of cubic cells of edge ``radius`` over the points' bounding box, built by the
+    parallel, stable counting sort of :mod:`filters.binning` (Green 2008; Hoetzlein 2014).
 ``"hash"``
     The same counting sort on a hash of the integer cell coordinates into a table of a power of
     two >= 2 N buckets (Teschner et al. 2003, "Optimized spatial hashing for collision detection
@@ -40,9 +38,10 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from .binning import counting_sort, gather_points, sort_into_cells
 from .validation import check_choice, check_int, check_points, check_range
 
-__all__ = ["NeighborSearch", "BACKENDS", "grid_cell_coords"]
+__all__ = ["NeighborSearch", "BACKENDS", "grid_cell_coords", "bounds", "grid_query_padded"]
 
 BACKENDS = ("grid", "hash", "kdtree", "auto")
 
@@ -50,56 +49,6 @@ _CELL_PAD = 1.0 + 1e-9
 _H1 = np.uint64(73856093)
 _H2 = np.uint64(19349663)
 _H3 = np.uint64(83492791)
-
-
-# --------------------------------------------------------------------------------------------
-# Counting sort (parallel, stable).
-# --------------------------------------------------------------------------------------------
-@njit(parallel=True, cache=True, error_model="numpy")
-def _counting_sort(keys, nkeys, nchunks):
-    """Stable counting sort of ``keys`` in [0, nkeys).
-
-    Returns ``start`` (nkeys + 1,) int64 (bucket ``k`` holds ``order[start[k]:start[k+1]]``) and
-    ``order`` (N,) int32 (original indices in bucket order).
-    """
-    n = keys.shape[0]
-    chunk = (n + nchunks - 1) // nchunks
-    counts = np.zeros((nchunks, nkeys), dtype=np.int64)
-    for c in prange(nchunks):
-        lo = c * chunk
-        hi = min(n, lo + chunk)
-        for i in range(lo, hi):
-            counts[c, keys[i]] += 1
-    start = np.empty(nkeys + 1, dtype=np.int64)
-    total = 0
-    for k in range(nkeys):
-        start[k] = total
-        for c in range(nchunks):
-            t = counts[c, k]
-            counts[c, k] = total
-            total += t
-    start[nkeys] = total
-    order = np.empty(n, dtype=np.int32)
-    for c in prange(nchunks):
-        lo = c * chunk
-        hi = min(n, lo + chunk)
-        for i in range(lo, hi):
-            k = keys[i]
-            order[counts[c, k]] = i
-            counts[c, k] += 1
-    return start, order
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _grid_keys(x, origin, inv_cell, dims):
-    n = x.shape[0]
-    keys = np.empty(n, dtype=np.int64)
-    for i in prange(n):
-        ix = min(max(int(math.floor((x[i, 0] - origin[0]) * inv_cell)), 0), dims[0] - 1)
-        iy = min(max(int(math.floor((x[i, 1] - origin[1]) * inv_cell)), 0), dims[1] - 1)
-        iz = min(max(int(math.floor((x[i, 2] - origin[2]) * inv_cell)), 0), dims[2] - 1)
-        keys[i] = (iz * dims[1] + iy) * dims[0] + ix
-    return keys
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -139,17 +88,6 @@ def bounds(x):
             if v > hi[c]:
                 hi[c] = v
     return lo, hi, finite
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _gather(x, order):
-    out = np.empty((order.shape[0], 3))
-    for k in prange(order.shape[0]):
-        i = order[k]
-        out[k, 0] = x[i, 0]
-        out[k, 1] = x[i, 1]
-        out[k, 2] = x[i, 2]
-    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -487,15 +425,14 @@ class NeighborSearch:
         self.backend = backend
         nchunks = max(1, numba.get_num_threads())
         if backend == "grid":
-            keys = _grid_keys(points, self.origin, 1.0 / self.cell, self.dims)
-            self.start, self.order = _counting_sort(keys, int(np.prod(self.dims)), nchunks)
-            self.sorted_points = _gather(points, self.order)
+            self.order, self.start, self.sorted_points = sort_into_cells(
+                points, self.origin, 1.0 / self.cell, self.dims, nchunks)
         elif backend == "hash":
             size = 1 << max(4, int(math.ceil(math.log2(max(2 * n, 1)))))
             self.mask = np.uint64(size - 1)
             keys = _hash_keys(points, 1.0 / self.hash_cell, self.mask)
-            self.start, self.order = _counting_sort(keys, size, nchunks)
-            self.sorted_points = _gather(points, self.order)
+            self.start, self.order = counting_sort(keys, size, nchunks)
+            self.sorted_points = gather_points(points, self.order)
         else:
             from scipy.spatial import cKDTree
 

@@ -8,7 +8,7 @@ import numbers
 import numpy as np
 
 __all__ = ["check_range", "check_finite", "check_int", "check_bool", "check_finite_vector",
-           "check_points", "check_choice"]
+           "check_points", "check_choice", "check_radii"]
 
 
 def check_range(name: str, value, low: float = -math.inf, high: float = math.inf, *,
@@ -105,3 +105,25 @@ def check_bool(name: str, value) -> bool:
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     raise TypeError(f"{name} must be True or False, got {value!r}")
+
+
+def check_radii(name: str, radius, n: int) -> np.ndarray:
+    """Return per-point radii as a finite, positive ``(n,) float64`` array.
+
+    ``radius`` is one positive finite number (broadcast) or an array of ``n`` of them; anything
+    else raises ``TypeError`` or ``ValueError`` naming ``name``.
+    """
+    if isinstance(radius, numbers.Real) and not isinstance(radius, bool):
+        r = check_range(name, radius, 0.0, math.inf, low_inclusive=False)
+        if not math.isfinite(r):
+            raise ValueError(f"{name} must be finite, got {radius!r}")
+        return np.full(n, r)
+    try:
+        radii = np.ascontiguousarray(radius, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a positive number or an (N,) array") from None
+    if radii.shape != (n,):
+        raise ValueError(f"{name} must be a number or have shape ({n},), got {radii.shape}")
+    if n and not (np.isfinite(radii).all() and radii.min() > 0):
+        raise ValueError(f"{name} must be finite and > 0 for every particle")
+    return radii

@@ -1,10 +1,15 @@
-"""Base class of blobflow's VTK algorithms: Python exceptions reach the caller.
+"""Base classes of blobflow's VTK algorithms, and running chains of them: errors reach the caller.
 
 VTK calls a Python algorithm's ``RequestData`` from C++; an exception raised there is printed and
 turned into a failed request, and ``Update()`` returns as if nothing happened.  Algorithms derived
-from :class:`Algorithm` keep the exception, and :func:`raise_pending` (used by
-:class:`pipeline.Flow`) re-raises it in the caller, so a simulation that blows up stops the run
-with its own error message instead of writing an empty frame.
+from :class:`Algorithm` keep the exception, and :func:`raise_pending` re-raises it in the caller,
+so a simulation that blows up stops the run with its own error message instead of writing an
+empty frame. :func:`connect_chain` wires a chain of algorithms (any VTK algorithm, ours or not),
+:func:`update` updates one and re-raises what failed, :func:`run_chain` does both for a chain fed
+by a data object; :class:`pipeline.Flow` and the frame tasks of :mod:`pipeline.frames` use them.
+
+A :class:`ParticleStage` (feature smoothing, attribute interpolation) reads the particles on its
+second input port: :func:`connect_chain` connects that port to the chain's input.
 
 :func:`vtk_messages` keeps what VTK would print (its output window and its logger) while a block
 runs, so a failure is reported as one line with VTK's first error instead of dozens of lines of
@@ -19,7 +24,8 @@ from contextlib import contextmanager
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
 
-__all__ = ["Algorithm", "raise_pending", "vtk_messages", "VTKMessages"]
+__all__ = ["Algorithm", "ParticleStage", "raise_pending", "vtk_messages", "VTKMessages",
+           "connect_chain", "update", "run_chain"]
 
 
 class Algorithm(VTKPythonAlgorithmBase):
@@ -37,6 +43,33 @@ class Algorithm(VTKPythonAlgorithmBase):
             # swallowed by VTK while the run goes on writing a frame that was never computed.
             self.pending_error = exc
             return 0
+
+
+class ParticleStage(Algorithm):
+    """An :class:`Algorithm` whose input port 0 takes the output of the previous stage and input
+    port 1 the particles the chain started from (connected by :func:`connect_chain`).
+
+    Parameters
+    ----------
+    inputType : str
+        Data type of port 0; port 1 takes any ``vtkPointSet``.
+    outputType : str
+        Data type of the output.
+    """
+
+    #: The input port that takes the particles.
+    PARTICLES_PORT = 1
+
+    def __init__(self, inputType: str = "vtkPolyData", outputType: str = "vtkPolyData"):
+        Algorithm.__init__(self, nInputPorts=2, inputType=inputType, nOutputPorts=1,
+                           outputType=outputType)
+
+    def FillInputPortInformation(self, port, info):
+        from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
+
+        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(),
+                 "vtkPointSet" if port == self.PARTICLES_PORT else self.InputType)
+        return 1
 
 
 def raise_pending(algorithms) -> None:
@@ -82,3 +115,64 @@ def vtk_messages():
         messages.text = window.GetOutput()
         vtkOutputWindow.SetInstance(previous)
         vtkLogger.SetStderrVerbosity(verbosity)
+
+
+def connect_chain(algorithms, upstream=None, data=None) -> None:
+    """Connect a chain: each algorithm's input port 0 to the previous one's output port 0.
+
+    The first algorithm's port 0, and port 1 of every :class:`ParticleStage` of the chain, get
+    the chain's input: the output of ``upstream`` (a VTK algorithm) or the data object ``data``.
+
+    Parameters
+    ----------
+    algorithms : sequence of vtkAlgorithm
+    upstream : vtkAlgorithm, optional
+    data : vtkDataObject, optional
+        Exactly one of ``upstream`` and ``data``.
+    """
+    if (upstream is None) == (data is None):
+        raise ValueError("connect_chain needs exactly one of upstream and data")
+
+    def feed(algorithm, port):
+        if upstream is not None:
+            algorithm.SetInputConnection(port, upstream.GetOutputPort(0))
+        else:
+            algorithm.SetInputDataObject(port, data)
+
+    previous = None
+    for algorithm in algorithms:
+        if previous is None:
+            feed(algorithm, 0)
+        else:
+            algorithm.SetInputConnection(0, previous.GetOutputPort(0))
+        if isinstance(algorithm, ParticleStage):
+            feed(algorithm, ParticleStage.PARTICLES_PORT)
+        previous = algorithm
+
+
+def update(algorithm, chain, time: float | None = None, what: str = "the VTK pipeline"):
+    """Update ``algorithm`` (at ``time`` when given) and return a shallow copy of its output.
+
+    The first exception kept by any algorithm of ``chain`` (:func:`raise_pending`) is re-raised;
+    a failure of a VTK filter without a Python exception raises ``RuntimeError`` naming
+    ``what``, the time and VTK's first error (VTK's own text is not printed).
+    """
+    with vtk_messages() as log:  # our own exception says it better than VTK's echo of it
+        ok = algorithm.Update() if time is None else algorithm.UpdateTimeStep(float(time))
+    raise_pending(chain)
+    if not ok:
+        detail = log.errors[0] if log.errors else "no message"
+        at = "" if time is None else f" at t = {time}"
+        raise RuntimeError(f"{what} failed{at} ({algorithm.GetClassName()}): {detail}")
+    data = algorithm.GetOutputDataObject(0)
+    copy = data.NewInstance()
+    copy.ShallowCopy(data)
+    return copy
+
+
+def run_chain(algorithms, data, time: float | None = None, what: str = "the VTK pipeline"):
+    """Feed ``data`` to a chain (:func:`connect_chain`), update its last algorithm
+    (:func:`update`) and return a copy of the result."""
+    algorithms = list(algorithms)
+    connect_chain(algorithms, data=data)
+    return update(algorithms[-1], algorithms, time, what)

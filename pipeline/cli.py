@@ -71,14 +71,17 @@ def _build_parser() -> argparse.ArgumentParser:
     p_surface.add_argument("particles", help="particle series (.pvd or .series)")
     p_surface.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p_surface.add_argument("--name", default="surface", help="series name (default surface)")
-    p_surface.add_argument("--radius", type=float, default=0.01, metavar="R",
-                           help="particle radius (m)")
+    p_surface.add_argument("--radius", type=float, metavar="R",
+                           help="particle radius (m); default half the spacing of the run that "
+                                "wrote the particles (its scene.json), else 0.01")
     p_surface.add_argument("--cell-size", type=float, metavar="H",
                            help="voxel edge (m), default radius / 2")
-    p_surface.add_argument("--kernel", default="sph", help="splatting kernel")
-    p_surface.add_argument("--smooth-iterations", type=int, default=20, metavar="N")
+    p_surface.add_argument("--kernel", help="splatting kernel (default sph)")
+    p_surface.add_argument("--smooth-iterations", type=int, metavar="N",
+                           help="windowed-sinc iterations (default 30)")
     p_surface.add_argument("--option", dest="options", action="append", default=[],
-                           metavar="NAME=VALUE", help="further MetaballSplat option (repeatable)")
+                           metavar="NAME=VALUE", help="further surface option (repeatable), as "
+                                                      "in pipeline.surface.surface_stages")
     p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
     p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_cluster_options(p_surface)
@@ -126,22 +129,27 @@ def _report_memory(result) -> None:
               f"process(es)")
 
 
-def _parse_options(items) -> dict:
+def _surface_options(args, source: Path) -> dict:
+    """Options of the surface: the producing run's (its ``scene.json`` beside the particles,
+    when there is one), then the command line's flags and ``--option`` assignments."""
+    from .assignments import parse_assignments
+    from .surface_options import SURFACE_PARAMETERS, surface_options_from_record
+
     options = {}
-    for item in items:
-        if "=" not in item:
-            raise UsageError(f"--option takes name=value, got {item!r}")
-        key, text = item.split("=", 1)
-        value: object = text
-        for convert in (int, float):
-            try:
-                value = convert(text)
-                break
-            except ValueError:
-                pass
-        if text.lower() in ("true", "false"):
-            value = text.lower() == "true"
-        options[key.strip().replace("-", "_")] = value
+    record_path = source.parent / "scene.json"
+    if record_path.is_file():
+        try:
+            options = surface_options_from_record(json.loads(record_path.read_text("utf-8")))
+        except (OSError, ValueError, TypeError) as exc:
+            raise UsageError(f"{record_path} is not a blobflow run record ({exc})") from None
+    flags = dict(radius=args.radius, cell_size=args.cell_size, kernel=args.kernel,
+                 smooth_iterations=args.smooth_iterations)
+    options.update({k: v for k, v in flags.items() if v is not None})
+    try:
+        options.update(parse_assignments(args.options, SURFACE_PARAMETERS, flag="--option",
+                                         owner="the surface"))
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     return options
 
 
@@ -168,8 +176,7 @@ def _cmd_surface(args) -> int:
     if any(p.parent == (out / args.name).resolve() for p in inputs):
         raise UsageError(f"--out {out} with --name {args.name} would overwrite the input frames; "
                          f"choose another --out or --name")
-    options = dict(radius=args.radius, cell_size=args.cell_size, kernel=args.kernel,
-                   smooth_iterations=args.smooth_iterations, **_parse_options(args.options))
+    options = _surface_options(args, source)
     try:
         from .surface import surface_stages
 
@@ -203,7 +210,7 @@ def _fit_budget_to_memory(args, options: dict) -> None:
     workers have their own memory and keep the budget as given.
     """
     from filters.memory import MemoryLimitError, check_memory, format_bytes, memory_limit
-    from filters.sparse_grid import DEFAULT_MAX_BYTES
+    from filters.surface.grid import DEFAULT_MAX_BYTES
 
     if args.scheduler is not None:
         return

@@ -8,7 +8,9 @@ from pathlib import Path
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
-from .algorithm import raise_pending, vtk_messages
+from filters.validation import check_bool
+
+from .algorithm import connect_chain, update
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, export_xdmf, read_frame
 from .sources import SimulationSource
@@ -58,7 +60,8 @@ class Flow:
             raise TypeError(f"source must be a SimulationSource, got {type(source).__name__}")
         self.source = source
         self.stages: dict[str, Stage] = {}
-        self.stages[_check_name(name)] = Stage(name, source, [source], write, xdmf)
+        self.stages[_check_name(name)] = Stage(name, source, [source], check_bool("write", write),
+                                               check_bool("xdmf", xdmf))
         self._primary = name
 
     @property
@@ -92,38 +95,28 @@ class Flow:
         _check_name(name)
         if name in self.stages:
             raise ValueError(f"an output named {name!r} exists already; names: {sorted(self.stages)}")
+        write = check_bool("write", write)
+        xdmf = check_bool("xdmf", xdmf)
         input = input or self._primary
         if input not in self.stages:
             raise ValueError(f"input must be one of {sorted(self.stages)}, got {input!r}")
         if not algorithms:
             raise ValueError("add() needs at least one algorithm")
-        upstream = self.stages[input].algorithm
         for algorithm in algorithms:
             if not isinstance(algorithm, vtkAlgorithm):
                 raise TypeError(f"stages must be VTK algorithms, got {type(algorithm).__name__}")
-            algorithm.SetInputConnection(0, upstream.GetOutputPort(0))
-            upstream = algorithm
+        connect_chain(algorithms, upstream=self.stages[input].algorithm)
         chain = self.stages[input].chain + list(algorithms)
-        self.stages[name] = Stage(name, upstream, chain, write, xdmf)
-        return upstream
+        self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf)
+        return algorithms[-1]
 
     def output(self, name: str, time: float):
         """Update output ``name`` at ``time`` and return a copy of its data object."""
         if name not in self.stages:
             raise ValueError(f"name must be one of {sorted(self.stages)}, got {name!r}")
         stage = self.stages[name]
-        algorithm = stage.algorithm
-        with vtk_messages() as log:  # our own exception says it better than VTK's echo of it
-            ok = algorithm.UpdateTimeStep(float(time))
-        raise_pending(stage.chain)
-        if not ok:  # a VTK filter of the chain failed without a Python exception
-            detail = log.errors[0] if log.errors else "no message"
-            raise RuntimeError(f"output {name!r}: the VTK pipeline failed at t = {time} "
-                               f"({algorithm.GetClassName()}): {detail}")
-        data = algorithm.GetOutputDataObject(0)
-        copy = data.NewInstance()
-        copy.ShallowCopy(data)
-        return copy
+        return update(stage.algorithm, stage.chain, time,
+                      what=f"output {name!r}: the VTK pipeline")
 
     def written_outputs(self) -> list[str]:
         """Names of the outputs that :meth:`run` writes as series."""

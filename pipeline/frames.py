@@ -319,24 +319,12 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
 # -- surface reconstruction of a particle series --------------------------------------------------
 def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> None:
     """Task: read one particle frame, reconstruct its surface, write it (``.vtp``)."""
-    from .algorithm import raise_pending, vtk_messages
+    from .algorithm import run_chain
     from .convert import set_time
     from .surface import surface_stages
 
     particles = read_frame(in_file)
-    stages = surface_stages(**options)
-    stages[0].SetInputDataObject(0, particles)
-    for upstream, downstream in zip(stages, stages[1:]):
-        downstream.SetInputConnection(0, upstream.GetOutputPort(0))
-    with vtk_messages() as log:  # a failure is reported once, by the task's error
-        ok = stages[-1].Update()
-    raise_pending(stages)
-    if not ok:
-        raise RuntimeError(f"surface of {in_file} failed: "
-                           f"{log.errors[0] if log.errors else 'VTK reported no message'}")
-    surface = stages[-1].GetOutputDataObject(0)
-    copy = surface.NewInstance()
-    copy.ShallowCopy(surface)
+    copy = run_chain(surface_stages(**options), particles, what=f"surface of {in_file}")
     set_time(copy, time)
     write_frame(copy, out_file)
 

@@ -63,6 +63,8 @@ import pyvista as pv  # noqa: E402
 from vtkmodules.util import numpy_support  # noqa: E402
 from tqdm.auto import tqdm  # noqa: E402
 
+from filters.validation import check_bool, check_int  # noqa: E402
+
 from .series import read_collection, read_frame  # noqa: E402
 
 __all__ = ["Renderer", "RenderUnavailableError", "turntable", "timelapse", "write_movie",
@@ -183,7 +185,14 @@ class Renderer:
             name = path.name.split(".")[0]
             self.layers.append(_Layer(name, entries))
         self.times = np.array([t for t, _ in self.layers[0].entries], dtype=np.float64)
-        self.size = (int(size[0]), int(size[1]))
+        if not (isinstance(size, (tuple, list)) and len(size) == 2):
+            raise TypeError(f"size must be (width, height) in pixels, got {size!r}")
+        self.size = (check_int("size[0]", size[0], 16, 16384), check_int("size[1]", size[1], 16,
+                                                                          16384))
+        if color_by is not None and not isinstance(color_by, str):
+            raise TypeError(f"color_by must be a point array name or None, got {color_by!r}")
+        floor = check_bool("floor", floor)
+        text = check_bool("text", text)
         self.color_by = color_by
         indices = list(range(len(self.times))) if frames is None else list(frames)
         self._setup(indices, floor, text, bounds, clim)

@@ -14,72 +14,15 @@ descriptions come from the numpydoc ``Parameters`` section of that function's do
 from __future__ import annotations
 
 import inspect
-import math
 import re
-from dataclasses import dataclass
 from importlib.metadata import entry_points
 
+from .assignments import Parameter, parse_assignments
 from .compose import Flow
 
 __all__ = ["Scene", "Parameter", "available_scenes", "load_scene", "ENTRY_POINT_GROUP"]
 
 ENTRY_POINT_GROUP = "blobflow.scenes"
-_TRUE = {"1", "true", "yes", "on"}
-_FALSE = {"0", "false", "no", "off"}
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One overridable scene parameter: its name, default value and description."""
-
-    name: str
-    default: object
-    doc: str = ""
-
-    @property
-    def kind(self) -> str:
-        """Type name shown to users: bool, int, float, str or vector."""
-        d = self.default
-        if isinstance(d, bool):
-            return "bool"
-        if isinstance(d, int):
-            return "int"
-        if isinstance(d, float):
-            return "float"
-        if isinstance(d, (tuple, list)):
-            return "vector"
-        return "str"
-
-    def parse(self, text: str):
-        """Convert the string ``text`` (from ``--set``) to this parameter's type."""
-        kind = self.kind
-        text = text.strip()
-        try:
-            if kind == "bool":
-                if text.lower() in _TRUE:
-                    return True
-                if text.lower() in _FALSE:
-                    return False
-                raise ValueError
-            if kind == "int":
-                return int(text)
-            if kind == "float":
-                value = float(text)
-                if not math.isfinite(value):
-                    raise ValueError
-                return value
-            if kind == "vector":
-                values = tuple(float(v) for v in text.strip("()[]").split(","))
-                if len(values) != len(self.default) or not all(map(math.isfinite, values)):
-                    raise ValueError
-                return values
-        except ValueError:
-            example = {"bool": "true or false", "int": "an integer", "float": "a finite number",
-                       "vector": f"{len(self.default) if kind == 'vector' else 3} comma-separated numbers"}
-            raise ValueError(
-                f"parameter {self.name!r} takes {example[kind]}, got {text!r}"
-            ) from None
-        return text
 
 
 def _parameter_docs(func) -> dict[str, str]:
@@ -143,19 +86,8 @@ class Scene:
             For a malformed assignment, an unknown name (the message lists the valid ones) or a
             value of the wrong type.
         """
-        values = {}
-        for item in assignments or ():
-            if "=" not in item:
-                raise ValueError(f"--set takes name=value, got {item!r}")
-            key, text = item.split("=", 1)
-            key = key.strip()
-            if key not in self.parameters:
-                raise ValueError(
-                    f"scene {self.name!r} has no parameter {key!r}; "
-                    f"parameters: {', '.join(self.parameters) or 'none'}"
-                )
-            values[key] = self.parameters[key].parse(text)
-        return values
+        return parse_assignments(assignments, self.parameters, flag="--set",
+                                 owner=f"scene {self.name!r}")
 
     def defaults(self) -> dict:
         """Every parameter with its default value."""

@@ -10,7 +10,7 @@ from vtkmodules.vtkCommonDataModel import vtkDataObject
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
 from filters.simulation import TIME_DECIMALS, Simulation, State, frame_times
-from filters.validation import check_choice, check_int
+from filters.validation import check_bool, check_choice, check_int
 
 from .algorithm import Algorithm
 from .convert import frame_to_vtk, state_to_field_data
@@ -66,7 +66,7 @@ class SimulationSource(Algorithm):
         Algorithm.__init__(self, nInputPorts=0, nOutputPorts=1, outputType=_VTK_TYPES[dataset])
         self.simulation = simulation
         self.dataset = dataset
-        self.checkpoint = bool(checkpoint)
+        self.checkpoint = check_bool("checkpoint", checkpoint)
         self.cache_size = check_int("cache_size", cache_size, 0)
         self.set_frames(fps, duration, frames)
         self._initial = simulation.get_state()

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from filters.colliders import Colliders
-from filters.mass_spring import ClothSimulation
+from filters.elastic.contact import Colliders
+from filters.geometry import Plane, Sphere
+from filters.elastic.mass_spring import ClothSimulation
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
@@ -52,8 +53,8 @@ def build(*, resolution: int = 32, size: float = 1.0, height: float = 0.7,
     sphere_radius = check_range("sphere_radius", sphere_radius, 0.0, low_inclusive=False)
     height = check_range("height", height, 2.0 * sphere_radius, low_inclusive=False)
     colliders = (Colliders(friction=friction, thickness=0.005)
-                 .add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-                 .add_sphere((0.0, 0.0, sphere_radius), sphere_radius))
+                 .add(Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
+                 .add(Sphere((0.0, 0.0, sphere_radius), sphere_radius)))
     sim = ClothSimulation.grid(resolution, resolution, size=(size, size),
                                origin=(-size / 2, -size / 2, height), plane="xy",
                                areal_density=areal_density, stretch_stiffness=stiffness,

@@ -9,7 +9,7 @@ wall, climbs it and falls back as a plunging wave.  The particle series carries 
 
 from __future__ import annotations
 
-from filters.sph_scenarios import dam_break_liquid
+from filters.sph.scenarios import dam_break_liquid
 from filters.validation import check_choice
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

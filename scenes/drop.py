@@ -7,7 +7,7 @@ The particle series carries ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure
 
 from __future__ import annotations
 
-from filters.sph_scenarios import drop_liquid
+from filters.sph.scenarios import drop_liquid
 from filters.validation import check_choice
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

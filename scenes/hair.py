@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.colliders import Colliders
-from filters.mass_spring import HairSimulation
+from filters.elastic.contact import Colliders
+from filters.geometry import Sphere
+from filters.elastic.mass_spring import HairSimulation
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
@@ -51,7 +52,7 @@ def build(*, strands: int = 200, segments: int = 16, length: float = 0.3,
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     center = np.array([0.0, 0.0, 1.5])
     roots = center + head_radius * d
-    head = Colliders(friction=0.3, thickness=0.002).add_sphere(center, head_radius * 0.98)
+    head = Colliders(friction=0.3, thickness=0.002).add(Sphere(center, head_radius * 0.98))
     sim = HairSimulation(roots, d, segments=segments, length=length,
                          stretch_stiffness=stiffness, bend_stiffness=bend, damping=damping,
                          colliders=head, max_dt=max_dt, cells="segments")

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from filters.colliders import Colliders
-from filters.mass_spring import JelloSimulation
-from filters.topology import icosphere
+from filters.elastic.contact import Colliders
+from filters.geometry import Plane
+from filters.elastic.mass_spring import JelloSimulation
+from filters.elastic.topology import icosphere
 from filters.validation import check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
@@ -91,7 +92,7 @@ def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing:
         points, triangles = icosphere(check_range("radius", radius, 0.0, low_inclusive=False), 3)
     height = check_range("height", height, 0.0)
     points = points - [0.0, 0.0, points[:, 2].min() - height]
-    floor = Colliders(friction=friction).add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    floor = Colliders(friction=friction).add(Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
     sim = JelloSimulation(points, triangles, spacing=spacing, density=density,
                           stretch_stiffness=stiffness, damping=damping, colliders=floor,
                           max_dt=max_dt)

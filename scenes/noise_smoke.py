@@ -9,10 +9,10 @@ near a ball so that the flow, rising wind included, goes around it.  Written as 
 
 from __future__ import annotations
 
-from filters.advect import INTEGRATORS, BoxEmitter, NoiseAdvection
-from filters.fields import CurlNoiseVelocity
-from filters.noise import PlaneSDF, SphereSDF
-from filters.validation import check_choice, check_int, check_range
+from filters.advect import BoxEmitter, NoiseAdvection, check_integrator
+from filters.fields import CurlNoise
+from filters.geometry import Plane, Sphere
+from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
@@ -53,7 +53,7 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
     surface : bool
         Also write the metaball surface (``surface.pvd``).
     integrator : str
-        One of euler, rk2, rk4, backward_euler.
+        One of euler, rk2, rk4, linearized_backward_euler.
     max_particles : int
         Cap on live particles (>= 1).
     seed : int
@@ -62,11 +62,11 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
     check_range("rate", rate, 0.0, low_inclusive=False)
     check_range("ball_radius", ball_radius, 0.0)
     check_range("radius", radius, 0.0, low_inclusive=False)
-    check_choice("integrator", integrator, INTEGRATORS)
+    check_integrator(integrator)
     seed = check_int("seed", seed, 0, 2**62)
-    floor = PlaneSDF((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-    obstacles = (SphereSDF((0.0, 0.0, ball_height), ball_radius),) if ball_radius > 0 else ()
-    flow_field = CurlNoiseVelocity(
+    floor = Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    obstacles = (Sphere((0.0, 0.0, ball_height), ball_radius),) if ball_radius > 0 else ()
+    flow_field = CurlNoise(
         amplitude=amplitude, frequency=frequency, octaves=octaves, seed=seed,
         time_scale=time_scale, colliders=obstacles, ramp_distance=0.1 if obstacles else 0.0,
         base_velocity=(0.0, 0.0, rise))
@@ -81,8 +81,11 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
     if surface:
         from pipeline.surface import surface_stages
 
+        # metaballs of the particles' own radii, smoothed more and with no liquid features
         flow.add("surface", *surface_stages(radius=radius, radius_array="size",
-                                            attributes=("velocity", "age", "color")),
+                                            attributes=("velocity", "age", "color"),
+                                            anisotropic=False, feature_smoothing=0,
+                                            smooth_iterations=100, pass_band=0.001),
                  input="particles")
     return flow
 

@@ -1,0 +1,190 @@
+"""Linear solves of the implicit integrators: one :class:`LinearSolver` per simulation.
+
+``method="pcg"``: preconditioned conjugate gradients in Numba, warm started from the previous
+step's solution; on the system's matrix-free operator when it has one
+(:meth:`filters.linalg.protocol.ImplicitSystem.implicit_operator`; :func:`pcg_operator`, with a
+choice of per-particle block Jacobi, block symmetric Gauss-Seidel, or block SSOR with
+Eisenstat's trick), otherwise block Jacobi on the CSR matrix (:func:`filters.linalg.cg.pcg`).
+``method="direct"``: SuperLU (:func:`filters.linalg.direct.direct_solve`). ``method="auto"``:
+PCG, falling back to the direct solve when PCG does not converge in ``max_iter`` iterations.
+The choice was made with ``benchmarks/bench_springs.py`` (see ``benchmarks/results/springs.json``).
+A :class:`LinearSolver` owns the scratch arrays of its solves, so a simulation that keeps one
+allocates nothing per step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..validation import check_choice, check_range
+from .block_cg import pcg_blocks
+from .cg import pcg
+from .direct import direct_solve
+from .ssor import DEFAULT_OMEGA, SSORWorkspace, pcg_ssor
+
+__all__ = ["SOLVERS", "PRECONDITIONERS", "DEFAULT_OMEGA", "LinearSolver", "pcg_operator",
+           "solve_linear"]
+
+#: Linear solvers of the implicit schemes.
+SOLVERS = ("auto", "pcg", "direct")
+#: Preconditioners of the matrix-free PCG.
+PRECONDITIONERS = ("sgs", "block_jacobi", "ssor")
+
+
+def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditioner="sgs",
+                 omega=DEFAULT_OMEGA, workspace: SSORWorkspace | None = None):
+    """Solve ``operator @ x = b`` by PCG with a matrix-free spring operator, in Numba.
+
+    Parameters
+    ----------
+    operator : filters.linalg.operator.BlockOperator
+        The SPD system matrix (e.g. ``SpringSystem.implicit_operator``), (3N, 3N).
+    b : (N, 3) or (3N,) float64 array
+        Right-hand side.
+    x0 : array like ``b``, optional
+        Warm start (zeros if omitted); not modified.
+    tol : float
+        Relative residual ``|b - A x| / |b|`` to reach.
+    max_iter : int
+        Iteration limit.
+    preconditioner : {"sgs", "block_jacobi", "ssor"}
+        Block symmetric Gauss-Seidel (two sweeps over the springs per iteration, about half the
+        iterations of block Jacobi on cloth), per-particle 3x3 block Jacobi, or block symmetric
+        successive over-relaxation with Eisenstat's trick (:func:`filters.linalg.ssor.pcg_ssor`: the two sweeps
+        *replace* the product with ``H``, so an iteration costs two passes over the springs;
+        with ``omega`` near its optimum the preconditioned condition number is
+        ``O(sqrt(kappa))`` on model problems (Axelsson 1994, "Iterative solution methods"),
+        so the iterations grow like ``kappa^(1/4)`` instead of ``kappa^(1/2)``; ``tol``
+        applies to the residual of ``H``, mapped back from the transformed system every few
+        iterations).
+    omega : float
+        Over-relaxation factor of ``"ssor"``, in (0, 2) (1 is symmetric Gauss-Seidel).
+    workspace : SSORWorkspace, optional
+        Scratch arrays of ``"ssor"`` kept between solves; a new one when omitted.
+
+    Returns
+    -------
+    x : float64 array shaped like ``b``
+    iterations : int
+    relative_residual : float
+    """
+    check_choice("preconditioner", preconditioner, PRECONDITIONERS)
+    check_range("omega", omega, 0.0, 2.0, low_inclusive=False, high_inclusive=False)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    shape = b.shape
+    b3 = b.reshape(-1, 3)
+    x = np.zeros_like(b3) if x0 is None else np.array(x0, dtype=np.float64).reshape(-1, 3)
+    x = np.ascontiguousarray(x)
+    if preconditioner == "ssor":
+        work = (workspace or SSORWorkspace()).get(operator.diag.shape[0],
+                                                  operator.upper[1].shape[0])
+        it, res = pcg_ssor(operator.pairs, operator.free, operator.blocks, operator.diag,
+                           operator.upper, b3, x, float(tol), int(max_iter), float(omega), work,
+                           operator.upper_ordered)
+        return x.reshape(shape), int(it), float(res)
+    it, res = pcg_blocks(operator.pairs, operator.free, operator.blocks, operator.diag,
+                         operator.lower, operator.upper, b3, x, float(tol), int(max_iter),
+                         preconditioner == "sgs")
+    return x.reshape(shape), int(it), float(res)
+
+
+def solve_linear(matrix, b, x0=None, *, solver="auto", tol=1e-6, max_iter=1000):
+    """Solve ``matrix @ x = b`` with the chosen solver.
+
+    Parameters
+    ----------
+    matrix : scipy.sparse.csr_matrix
+        SPD system matrix.
+    b : (n,) float64 array
+        Right-hand side.
+    x0 : (n,) float64 array, optional
+        Warm start for PCG.
+    solver : {"auto", "pcg", "direct"}
+        ``"auto"`` runs PCG and falls back to the direct solve if it has not converged.
+    tol, max_iter : float, int
+        PCG relative tolerance and iteration limit.
+
+    Returns
+    -------
+    x : (n,) float64 array
+    iterations : int
+        PCG iterations (including those of a PCG attempt before a fallback).
+    direct : bool
+        Whether a direct solve produced ``x``.
+    """
+    check_choice("solver", solver, SOLVERS)
+    if solver == "direct":
+        return direct_solve(matrix, b), 0, True
+    x, it, res = pcg(matrix, b, x0, tol=tol, max_iter=max_iter)
+    if res <= tol or solver == "pcg":
+        return x, it, False
+    return direct_solve(matrix, b), it, True
+
+
+
+
+class LinearSolver:
+    """The linear solver of an implicit integrator, with its scratch arrays.
+
+    Parameters
+    ----------
+    method : {"auto", "pcg", "direct"}
+        See the module docstring.
+    preconditioner : {"ssor", "block_jacobi", "sgs"}
+        Preconditioner of the matrix-free PCG.
+    omega : float
+        Over-relaxation factor of ``"ssor"``, in (0, 2).
+    """
+
+    def __init__(self, method: str = "auto", *, preconditioner: str = "ssor",
+                 omega: float = DEFAULT_OMEGA):
+        self.method = check_choice("solver", method, SOLVERS)
+        self.preconditioner = check_choice("preconditioner", preconditioner, PRECONDITIONERS)
+        self.omega = check_range("omega", omega, 0.0, 2.0, low_inclusive=False,
+                                 high_inclusive=False)
+        self.workspace = SSORWorkspace()
+
+    def operator(self, system, x, xdir, h):
+        """The system matrix at ``(x, xdir, h)``: matrix-free when the method iterates and the
+        system has such a form, else the assembled CSR matrix."""
+        op = system.implicit_operator(x, xdir, h) if self.method != "direct" else None
+        return system.system_matrix(x, xdir, h) if op is None else op
+
+    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int):
+        """Solve ``H(x, xdir) d = rhs`` for an :class:`~filters.linalg.protocol.ImplicitSystem`.
+
+        Parameters
+        ----------
+        system : ImplicitSystem
+        x, xdir : (N, 3) float64
+            Positions of the stiffness and of the damping directions (m).
+        h : float
+            Time step (s).
+        rhs : (N, 3) float64
+            Right-hand side.
+        warm : (3N,) float64 or None
+            Warm start of PCG.
+        tol : float
+            Relative residual PCG must reach.
+        max_iter : int
+            PCG iteration limit.
+
+        Returns
+        -------
+        d : (3N,) float64
+        iterations : int
+            PCG iterations (including those of a PCG attempt before a direct fallback).
+        direct : bool
+            Whether a direct solve produced ``d``.
+        """
+        op = system.implicit_operator(x, xdir, h) if self.method != "direct" else None
+        if op is not None:
+            d, it, res = pcg_operator(op, rhs, warm, tol=tol, max_iter=max_iter,
+                                      preconditioner=self.preconditioner, omega=self.omega,
+                                      workspace=self.workspace)
+            if res <= tol or self.method == "pcg":
+                return d.ravel(), it, False
+            return direct_solve(system.system_matrix(x, xdir, h), rhs.ravel()), it, True
+        mat = system.system_matrix(x, xdir, h)
+        return solve_linear(mat, rhs.ravel(), warm, solver=self.method, tol=tol,
+                            max_iter=max_iter)

@@ -1,0 +1,323 @@
+"""Boundary particles for SPH walls and obstacles (Akinci et al. 2012), without density bias.
+
+Akinci, Ihmsen, Akinci, Solenthaler & Teschner (2012) "Versatile rigid-fluid coupling for
+incompressible SPH" (ACM TOG 31(4)) represent a solid by particles ``b`` that contribute
+``rho0 * V_b * W(x_i - x_b)`` to a fluid particle's density, with ``V_b = 1 / sum_k W(x_b - x_k)``
+over the boundary particles ``k``.  With one layer of samples that volume overestimates what a
+wall contributes (measured here: +6 % density at a floor, +15 % in corners), enough to blow up a
+stiff WCSPH at t = 0.  This module offers two samplings without that bias:
+
+:func:`box_boundary`
+    Several layers (``ceil(h / spacing)``) of lattice particles outside the faces of a box, each
+    with the *fluid's own lattice volume*, so that a fluid particle on the fluid lattice next to a
+    wall or in a corner sees exactly the neighbourhood it would see in the bulk: rest density.
+:func:`mesh_boundary`
+    One layer of samples on any closed triangle mesh (vertices and faces as arrays), with Akinci
+    volumes scaled by a factor ``gamma`` computed so that a fluid lattice resting on a flat wall
+    sampled the same way has rest density in its first layer.
+
+Both return :class:`BoundaryParticles` whose ``volumes`` are SPH volumes (m^3): a boundary
+particle adds ``rho0 * volumes[b] * W`` to a density.  :func:`lattice_volume` is the volume that
+makes a perfect fluid lattice of the given spacing have rest density.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from ..geometry import Box
+from ..kernels import kernel_id, kernel_w
+from ..neighbors import NeighborSearch
+from ..validation import check_finite_vector, check_int, check_range
+
+__all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary",
+           "concatenate_boundaries"]
+
+
+@dataclass(frozen=True)
+class BoundaryParticles:
+    """Static boundary particles.
+
+    Parameters
+    ----------
+    points : (M, 3) float64 array
+        Positions (m).
+    volumes : (M,) float64 array
+        SPH volumes (m^3); a boundary particle contributes ``rho0 * volumes[b] * W`` to a density.
+    """
+
+    points: np.ndarray
+    volumes: np.ndarray
+
+    def __post_init__(self):
+        p = np.ascontiguousarray(self.points, dtype=np.float64)
+        v = np.ascontiguousarray(self.volumes, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"points must have shape (M, 3), got {p.shape}")
+        if v.shape != (p.shape[0],):
+            raise ValueError(f"volumes must have shape ({p.shape[0]},), got {v.shape}")
+        if not (np.isfinite(p).all() and np.isfinite(v).all() and (v > 0).all()):
+            raise ValueError("boundary points must be finite and volumes finite and > 0")
+        p.setflags(write=False)
+        v.setflags(write=False)
+        object.__setattr__(self, "points", p)
+        object.__setattr__(self, "volumes", v)
+
+    @property
+    def n_points(self) -> int:
+        """Number of boundary particles ``M``."""
+        return self.points.shape[0]
+
+
+def concatenate_boundaries(*parts: BoundaryParticles) -> BoundaryParticles:
+    """Join several :class:`BoundaryParticles` (e.g. a tank and an obstacle) into one."""
+    if not parts:
+        return BoundaryParticles(np.zeros((0, 3)), np.zeros(0))
+    return BoundaryParticles(np.concatenate([p.points for p in parts]),
+                             np.concatenate([p.volumes for p in parts]))
+
+
+def lattice_volume(spacing: float, support_m: float, kernel: str = "cubic") -> float:
+    """Volume ``1 / sum_j W(x_j)`` over a cubic lattice of the given spacing (m^3).
+
+    With masses ``rho0 * lattice_volume`` a fluid on this lattice has density ``rho0`` exactly
+    (the kernel's lattice sum differs from its integral by up to a few percent).
+
+    Parameters
+    ----------
+    spacing : float
+        Lattice spacing (m).
+    support_m : float
+        Kernel support radius ``h`` (m).
+    kernel : str
+        Kernel name, see :data:`filters.kernels.SMOOTHING_KERNELS`.
+    """
+    spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
+    support = check_range("support_m", support_m, 0.0, math.inf, low_inclusive=False)
+    kind = kernel_id(kernel)
+    n = int(math.ceil(support / spacing)) + 1
+    g = np.arange(-n, n + 1) * spacing
+    X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
+    r = np.sqrt(X * X + Y * Y + Z * Z).ravel()
+    total = _sum_w(kind, r, support)
+    return 1.0 / total
+
+
+@njit(cache=True)
+def _sum_w(kind, r, h):
+    s = 0.0
+    for k in range(r.shape[0]):
+        s += kernel_w(kind, r[k], h)
+    return s
+
+
+def _axis_coords(lo, hi, spacing, layers):
+    """Coordinates along one axis: inner samples at cell centres, ``layers`` outside each end."""
+    length = hi - lo
+    n = max(1, int(round(length / spacing)))
+    step = length / n
+    inner = lo + (np.arange(n) + 0.5) * step
+    below = lo - (np.arange(layers)[::-1] + 0.5) * spacing
+    above = hi + (np.arange(layers) + 0.5) * spacing
+    coords = np.concatenate([below, inner, above])
+    widths = np.concatenate([np.full(layers, spacing), np.full(n, step), np.full(layers, spacing)])
+    return coords, widths
+
+
+def box_boundary(lower, upper=None, spacing: float | None = None, *,
+                 support_factor: float = 2.0, kernel: str = "cubic", layers: int | None = None,
+                 open_top: bool = False) -> BoundaryParticles:
+    """Boundary particles in layers outside the walls of the box ``[lower, upper]``.
+
+    The fluid lives inside the box.  Samples sit on the fluid lattice continued through the walls
+    (first layer ``spacing / 2`` outside each face), so a fluid block sampled at cell centres of
+    the same lattice (``lower + (i + 1/2) spacing``) has rest density at the walls and corners.
+
+    Parameters
+    ----------
+    lower, upper : sequence of 3 float
+        Inner corners of the tank (m), ``upper > lower`` component-wise; or ``lower`` a
+        :class:`filters.geometry.Box` (the tank's inner box) and ``upper`` omitted.
+    spacing : float
+        Particle spacing (m), > 0.
+    support_factor : float
+        Kernel support radius as a multiple of ``spacing`` (default 2, as in SPlisHSPlasH).
+    kernel : str
+        Kernel used for the lattice volume.
+    layers : int, optional
+        Number of layers; default ``ceil(support_factor)``, which gives full kernel support.
+    open_top : bool
+        Leave out the lid (the face at ``upper[2]``).
+
+    Returns
+    -------
+    BoundaryParticles
+    """
+    if isinstance(lower, Box):
+        if upper is not None:
+            raise ValueError("upper must be omitted when lower is a filters.geometry.Box")
+        lower, upper = lower.lower, lower.upper
+    lower = check_finite_vector("lower", lower, 3)
+    upper = check_finite_vector("upper", upper, 3)
+    if spacing is None:
+        raise TypeError("box_boundary needs the spacing (m)")
+    spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
+    support_factor = check_range("support_factor", support_factor, 1.0, 4.0)
+    if not (upper > lower).all():
+        raise ValueError(f"upper must exceed lower in every component, got {lower} and {upper}")
+    if ((upper - lower) / spacing > 5000).any():
+        raise ValueError("box is more than 5000 spacings long; increase spacing")
+    if layers is None:
+        layers = int(math.ceil(support_factor - 1e-9))
+    layers = check_int("layers", layers, 1, 8)
+    axes = [_axis_coords(lower[k], upper[k], spacing, layers) for k in range(3)]
+    (cx, wx), (cy, wy), (cz, wz) = axes
+    X, Y, Z = np.meshgrid(cx, cy, cz, indexing="ij")
+    VX, VY, VZ = np.meshgrid(wx, wy, wz, indexing="ij")
+    inside = ((X > lower[0]) & (X < upper[0]) & (Y > lower[1]) & (Y < upper[1])
+              & (Z > lower[2]) & (Z < upper[2]))
+    keep = ~inside
+    if open_top:
+        keep &= Z < upper[2]
+    points = np.stack([X[keep], Y[keep], Z[keep]], axis=1)
+    scale = lattice_volume(spacing, support_factor * spacing, kernel) / spacing ** 3
+    volumes = (VX * VY * VZ)[keep] * scale
+    return BoundaryParticles(points, volumes)
+
+
+# --------------------------------------------------------------------------------------------
+# Closed triangle meshes.
+# --------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _triangle_samples(v, f, spacing):
+    nf = f.shape[0]
+    counts = np.empty(nf + 1, dtype=np.int64)
+    counts[0] = 0
+    subdiv = np.empty(nf, dtype=np.int64)
+    for t in range(nf):
+        a = v[f[t, 0]]
+        b = v[f[t, 1]]
+        c = v[f[t, 2]]
+        e = max(np.sqrt(((a - b) ** 2).sum()), np.sqrt(((b - c) ** 2).sum()),
+                np.sqrt(((c - a) ** 2).sum()))
+        n = max(1, int(math.ceil(e / spacing)))
+        subdiv[t] = n
+        counts[t + 1] = (n + 1) * (n + 2) // 2
+    offsets = np.cumsum(counts)
+    out = np.empty((offsets[nf], 3))
+    for t in range(nf):
+        n = subdiv[t]
+        pos = offsets[t]
+        for i in range(n + 1):
+            for j in range(n + 1 - i):
+                u = i / n
+                w = j / n
+                for k in range(3):
+                    out[pos, k] = (v[f[t, 0], k] + u * (v[f[t, 1], k] - v[f[t, 0], k])
+                                   + w * (v[f[t, 2], k] - v[f[t, 0], k]))
+                pos += 1
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _akinci_volumes(x, off, idx, kind, h):
+    n = x.shape[0]
+    out = np.empty(n)
+    w0 = kernel_w(kind, 0.0, h)
+    for i in prange(n):
+        s = w0
+        for k in range(off[i], off[i + 1]):
+            j = idx[k]
+            dx = x[i, 0] - x[j, 0]
+            dy = x[i, 1] - x[j, 1]
+            dz = x[i, 2] - x[j, 2]
+            s += kernel_w(kind, math.sqrt(dx * dx + dy * dy + dz * dz), h)
+        out[i] = 1.0 / s
+    return out
+
+
+def _flat_wall_gamma(spacing, h, kind, kernel):
+    """Scale of Akinci volumes that gives rest density next to a flat single-layer wall."""
+    n = int(math.ceil(h / spacing)) + 1
+    g = np.arange(-n, n + 1) * spacing
+    # Wall layer at z = 0 (a square lattice), its Akinci volume from its in-plane neighbours.
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    rw = np.sqrt(X * X + Y * Y).ravel()
+    vol_wall = 1.0 / _sum_w(kind, rw, h)
+    # Fluid half-space lattice z = spacing/2 + k spacing; test particle at (0, 0, spacing/2).
+    zs = (np.arange(n + 1) + 0.5) * spacing
+    X, Y, Z = np.meshgrid(g, g, zs, indexing="ij")
+    rf = np.sqrt(X * X + Y * Y + (Z - 0.5 * spacing) ** 2).ravel()
+    vol_fluid = lattice_volume(spacing, h, kernel)
+    rho_fluid = vol_fluid * _sum_w(kind, rf, h)  # in units of rho0
+    rb = np.sqrt(X[:, :, 0] ** 2 + Y[:, :, 0] ** 2 + (0.5 * spacing) ** 2).ravel()
+    rho_wall = vol_wall * _sum_w(kind, rb, h)
+    return (1.0 - rho_fluid) / rho_wall
+
+
+def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.0,
+                  kernel: str = "cubic", check_closed: bool = True) -> BoundaryParticles:
+    """One layer of boundary particles sampled on a closed triangle mesh.
+
+    Every triangle is sampled on a barycentric lattice whose step is at most ``spacing``;
+    duplicates on shared vertices and edges are merged.  Volumes are Akinci et al. (2012)'s
+    ``1 / sum_k W(x_b - x_k)``, multiplied by a factor computed so that a fluid lattice resting
+    ``spacing / 2`` above a flat wall sampled at ``spacing`` has rest density (this removes the
+    single layer's overestimate).
+
+    Parameters
+    ----------
+    vertices : (V, 3) array_like
+        Mesh vertices (m).
+    faces : (F, 3) array_like of int
+        Triangles as vertex indices.
+    spacing : float
+        Sampling distance (m), normally the fluid particle spacing.
+    support_factor : float
+        Kernel support radius as a multiple of ``spacing``.
+    kernel : str
+        Kernel name.
+    check_closed : bool
+        Require every edge to be shared by exactly two triangles (a closed, manifold surface).
+
+    Returns
+    -------
+    BoundaryParticles
+    """
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3 or not np.isfinite(v).all():
+        raise ValueError(f"vertices must be a finite (V, 3) array with V >= 3, got {v.shape}")
+    f = np.asarray(faces)
+    if f.ndim != 2 or f.shape[1] != 3 or f.shape[0] < 1 or not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"faces must be an (F, 3) integer array, got {f.shape} {f.dtype}")
+    f = np.ascontiguousarray(f, dtype=np.int64)
+    if f.min() < 0 or f.max() >= v.shape[0]:
+        raise ValueError(f"faces must index vertices in [0, {v.shape[0] - 1}]")
+    spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
+    support_factor = check_range("support_factor", support_factor, 1.0, 4.0)
+    kind = kernel_id(kernel)
+    if check_closed:
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        _, counts = np.unique(edges, axis=0, return_counts=True)
+        if (counts != 2).any():
+            raise ValueError(
+                f"faces must form a closed surface (every edge in exactly 2 triangles); "
+                f"{int((counts != 2).sum())} edges are not"
+            )
+    extent = float(np.ptp(v, axis=0).max())
+    if extent / spacing > 20000:
+        raise ValueError("mesh is more than 20000 spacings across; increase spacing")
+    samples = _triangle_samples(v, f, spacing)
+    key = np.round(samples / (spacing * 1e-4)).astype(np.int64)
+    _, first = np.unique(key, axis=0, return_index=True)
+    points = np.ascontiguousarray(samples[np.sort(first)])
+    h = support_factor * spacing
+    ns = NeighborSearch(h, "auto").build(points)
+    off, idx = ns.query()
+    volumes = _akinci_volumes(points, off, idx, kind, h)
+    volumes *= _flat_wall_gamma(spacing, h, kind, kernel)
+    return BoundaryParticles(points, volumes)

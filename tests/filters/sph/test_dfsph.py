@@ -1,0 +1,197 @@
+"""Tests of the DFSPH solver (filters.sph.dfsph through SPHLiquid(solver="dfsph"))."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from filters import SimulationUnstableError, State
+from filters.sph.boundary import box_boundary
+from filters.sph import SPHLiquid
+from filters.sph.scenarios import dam_break_liquid
+
+# Martin & Moyce (1952), "Part IV. An experimental study of the collapse of liquid columns on a
+# rigid horizontal plane", Phil. Trans. R. Soc. A 244, fig. 3, n^2 = 2 (column height 2a), the
+# two column sizes (a = 1.125 and 2.25 in): surge front Z = x / a against T = t sqrt(2 g / a).
+MARTIN_MOYCE = np.array([
+    [0.832, 1.217], [0.849, 1.245], [1.212, 1.443], [1.219, 1.474], [1.602, 1.884],
+    [1.997, 2.292], [2.283, 2.689], [2.547, 2.995], [2.950, 3.728], [3.345, 4.134]])
+
+
+def lattice(lo, hi, s):
+    axes = [lo[k] + (np.arange(int(round((hi[k] - lo[k]) / s))) + 0.5) * s for k in range(3)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+
+
+def _settled_column():
+    """A 10-layer column settled for 1.5 s, then its pressure sampled over 50 steps.
+
+    Depth is measured from the free surface, the top particle layer plus half a spacing (the
+    settled column stands lower than the lattice it started from), and sampled in the band at
+    least 1.5 support radii from the floor, the side walls and the surface: next to the
+    boundary particles and at the surface the SPH pressure carries the well-known layering of
+    a particle discretisation, which is not the solver's error.
+    """
+    s, width, height = 0.02, 0.24, 0.2
+    x = lattice((0, 0, 0), (width, width, height), s)
+    walls = box_boundary((0, 0, 0), (width, width, 0.3), s)
+    sim = SPHLiquid(x, spacing=s, boundary=walls, solver="dfsph", viscosity=1.0,
+                    boundary_viscosity=0.0, max_dt=0.002)
+    sim.advance_to(1.5)
+    reach = 1.5 * sim.model.support
+    pressure, hydrostatic, errors = 0.0, 0.0, []
+    for _ in range(50):  # pooled over 50 full steps (one step's field is noisy)
+        sim.step(sim.max_step())
+        f = sim.frame()
+        z, p = f.points[:, 2], f.point_data["pressure"]
+        top = z[z > z.max() - 0.5 * s].mean() + 0.5 * s
+        depth = top - z
+        inner = (np.abs(f.points[:, :2] - 0.5 * width) < 0.5 * width - reach).all(1)
+        band = inner & (z > reach) & (depth > reach)
+        assert band.sum() > 50
+        pressure += p[band].sum()
+        hydrostatic += (1000.0 * 9.81 * depth[band]).sum()
+        errors.append(sim.last_density_error)
+    return sim, height, pressure / hydrostatic, errors
+
+
+@pytest.fixture(scope="module")
+def settled_column():
+    return _settled_column()
+
+
+def test_hydrostatic_column_at_rest(settled_column):
+    sim, height, ratio, errors = settled_column
+    assert max(errors) <= sim.model.max_density_error
+    assert sim.mean_density_error < 2 * sim.model.max_density_error
+    speed = np.sqrt((sim.state.velocities ** 2).sum(axis=1)).max()
+    assert speed < 0.01 * math.sqrt(9.81 * height)
+
+
+def test_hydrostatic_pressure_within_5_percent(settled_column):
+    assert settled_column[2] == pytest.approx(1.0, abs=0.05)
+
+
+def front_errors(sim, a, depth, s, t_end):
+    """Relative front-position errors against Martin & Moyce over 0.8 <= T <= 3."""
+    g = 9.81
+    scale = math.sqrt(2 * g / a)
+    errs = []
+    for T in np.arange(0.8, t_end + 1e-9, 0.2):
+        sim.advance_to(round(T / scale, 9))
+        x = np.sort(sim.state.positions[:, 0])
+        front = x[-max(1, int(round(depth / s)))] / a  # leading edge, robust to a lone splash
+        ref = np.interp(T, MARTIN_MOYCE[:, 0], MARTIN_MOYCE[:, 1])
+        errs.append(abs(front - ref) / ref)
+    return np.array(errs)
+
+
+def test_dam_break_front_follows_martin_and_moyce():
+    a, s, depth = 0.1, 0.01, 0.05
+    sim = dam_break_liquid(column_width=a, depth=depth, spacing=s, solver="dfsph")
+    errs = front_errors(sim, a, depth, s, 3.0)
+    assert errs.mean() < 0.10, errs
+    assert sim.last_density_iterations <= sim.model.max_iterations
+
+
+def test_solvers_reach_their_tolerances():
+    s, w = 0.01, 0.1
+    x = lattice((0, 0, 0), (w, w, w), s)
+    rng = np.random.default_rng(3)
+    centre = x.mean(axis=0)
+    v = -10.0 * (x - centre) + rng.normal(0, 0.05, x.shape)  # converging: div v = -30 / s
+    walls = box_boundary((0, 0, 0), (w, w, w), s)
+    sim = SPHLiquid(x, v, spacing=s, boundary=walls, solver="dfsph", gravity=(0, 0, 0))
+    ids = sim.state.extra["id"]
+    before = sim.state.velocities.copy()
+    sim.step(0.004)
+    assert 2 <= sim.last_divergence_iterations < sim.model.max_iterations
+    assert sim.last_divergence_error <= sim.model.max_divergence_error
+    assert 2 <= sim.last_density_iterations < sim.model.max_iterations
+    assert sim.last_density_error <= sim.model.max_density_error
+    # Velocity divergence of the interior block after the step, by the SPH estimate.
+    solver = sim._dfsph
+    after = solver.density_rate(sim.state.velocities).copy()
+    inner = (np.abs(sim.state.positions - centre) < 0.5 * w - 2.5 * s).all(axis=1)
+    assert inner.sum() >= 27
+    dt = 0.004
+    assert np.mean(np.maximum(after[inner], 0.0)) * dt <= sim.model.max_divergence_error
+    # and it was far above the tolerance before (D rho / D t / rho0 = 30 / s)
+    assert 30.0 * dt > 10 * sim.model.max_divergence_error
+    assert not np.allclose(before[ids], sim.state.velocities)
+
+
+def _run_dam(threads, t=0.06):
+    sim = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph",
+                           threads=threads)
+    sim.advance_to(t)
+    return sim
+
+
+def test_bitwise_identical_across_thread_counts():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    one = _run_dam(1)
+    two = _run_dam(2)
+    np.testing.assert_array_equal(one.state.positions, two.state.positions)
+    np.testing.assert_array_equal(one.state.velocities, two.state.velocities)
+    np.testing.assert_array_equal(one.state.extra["pi"], two.state.extra["pi"])
+    w1 = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, threads=1)
+    w2 = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, threads=2)
+    w1.advance_to(0.02)
+    w2.advance_to(0.02)
+    np.testing.assert_array_equal(w1.state.positions, w2.state.positions)
+
+
+def test_checkpoint_resumes_bit_identically():
+    sim = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
+    sim.advance_to(0.03)
+    saved = State.from_arrays(sim.get_state().to_arrays())
+    assert {"pi", "kappa_v"} <= set(saved.extra)
+    sim.advance_to(0.08)
+    other = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
+    other.set_state(saved)
+    other.frame()  # frames sort particles in place; that must not change the trajectory
+    other.advance_to(0.08)
+    np.testing.assert_array_equal(other.state.positions, sim.state.positions)
+    np.testing.assert_array_equal(other.state.velocities, sim.state.velocities)
+    np.testing.assert_array_equal(other.state.extra["pi"], sim.state.extra["pi"])
+
+
+def test_dam_break_scene_at_half_spacing_runs():
+    from scenes.dam_break import build
+
+    defaults = build.__kwdefaults__
+    flow = build(spacing=defaults["spacing"] / 2, surface=False, column_width=0.05,
+                 column_height=0.1, depth=0.03, tank_length=0.2, tank_height=0.15)
+    sim = flow.source.simulation
+    assert sim.model.solver == defaults["solver"]
+    sim.advance_to(0.1)
+    assert np.isfinite(sim.state.positions).all()
+
+
+def test_blow_up_raises_with_time_and_quantity():
+    sim = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph",
+                           container=None)
+    with pytest.raises(SimulationUnstableError) as info:
+        for _ in range(10):
+            sim.step(0.2)  # far beyond the CFL limit
+    assert info.value.quantity and info.value.time > 0
+    assert "speed_of_sound" not in info.value.cause
+    assert "max_dt" in info.value.cause
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(solver="iisph"), "solver"),
+    (dict(solver="dfsph", max_density_error=0.0), r"max_density_error must be in \[1e-06, 0.1\]"),
+    (dict(solver="dfsph", max_density_error=0.5), "max_density_error"),
+    (dict(solver="dfsph", max_divergence_error=-1.0), r"max_divergence_error must be in"),
+    (dict(solver="dfsph", max_iterations=1), r"max_iterations must be an integer in \[2, 10000\]"),
+    (dict(solver="dfsph", max_dt=0.0), "max_dt"),
+    (dict(solver="dfsph", kinematic_viscosity=-1.0), "kinematic_viscosity"),
+    (dict(solver="wcsph", kinematic_viscosity=1e-6), "kinematic_viscosity"),
+])
+def test_bad_dfsph_parameters(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        SPHLiquid(np.zeros((1, 3)), spacing=0.1, **kwargs)
