@@ -22,10 +22,46 @@ from .splat import check_splat_args
 __all__ = ["interpolate_attributes"]
 
 
+@njit(cache=True, inline="always")
+def _block_gap(x, lo, size):
+    """Distance along one axis from ``x`` to the block ``[lo, lo + size]`` (voxel units)."""
+    if x < lo:
+        return lo - x
+    if x > lo + size:
+        return x - lo - size
+    return 0.0
+
+
+@njit(cache=True)
+def _nearest(x, P, start, table, ranks, reach, bsz, bx, by, bz):
+    """Index of the particle nearest to ``x`` in the blocks within ``reach`` (or -1)."""
+    best = -1
+    best_d2 = np.inf
+    for dz in range(-reach, reach + 1):
+        for dy in range(-reach, reach + 1):
+            for dx in range(-reach, reach + 1):
+                v = lookup(table, ranks, pack_key(bx + dx, by + dy, bz + dz))
+                if v < 0:
+                    continue
+                for q in range(start[v], start[v + 1]):
+                    ex = x[0] - P[q, 0]
+                    ey = x[1] - P[q, 1]
+                    ez = x[2] - P[q, 2]
+                    d2 = ex * ex + ey * ey + ez * ez
+                    if d2 < best_d2:
+                        best_d2 = d2
+                        best = q
+    return best
+
+
 @njit(parallel=True, cache=True, fastmath=True)
 def _shepard(X, P, H, V, start, table, ranks, reach, bsz, kernel, blob_a, blob_e):
     m = X.shape[0]
     k = V.shape[1]
+    hmax = 0.0
+    for q in range(H.shape[0]):
+        hmax = max(hmax, H[q])
+    hmax2 = hmax * hmax * (1.0 + 1e-6)
     out = np.zeros((m, k), np.float64)
     for t in prange(m):
         bx = np.int64(math.floor(X[t, 0] / bsz))
@@ -34,9 +70,18 @@ def _shepard(X, P, H, V, start, table, ranks, reach, bsz, kernel, blob_a, blob_e
         wsum = 0.0
         best = -1
         best_d2 = np.inf
+        skipped = False
         for dz in range(-reach, reach + 1):
+            gz = _block_gap(X[t, 2], (bz + dz) * bsz, bsz)
             for dy in range(-reach, reach + 1):
+                gy = _block_gap(X[t, 1], (by + dy) * bsz, bsz)
                 for dx in range(-reach, reach + 1):
+                    gx = _block_gap(X[t, 0], (bx + dx) * bsz, bsz)
+                    # a block farther than every support cannot weigh (if no kernel reaches
+                    # the point at all, the nearest-particle search below sees every block)
+                    if gx * gx + gy * gy + gz * gz > hmax2:
+                        skipped = True
+                        continue
                     v = lookup(table, ranks, pack_key(bx + dx, by + dy, bz + dz))
                     if v < 0:
                         continue
@@ -55,6 +100,8 @@ def _shepard(X, P, H, V, start, table, ranks, reach, bsz, kernel, blob_a, blob_e
                             wsum += w
                             for c in range(k):
                                 out[t, c] += w * V[q, c]
+        if wsum == 0 and skipped:
+            best = _nearest(X[t], P, start, table, ranks, reach, bsz, bx, by, bz)
         if wsum > 0:
             for c in range(k):
                 out[t, c] /= wsum
