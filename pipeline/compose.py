@@ -12,7 +12,8 @@ from filters.validation import check_bool
 
 from .algorithm import connect_chain, update
 from .convert import has_state, state_from_dataset
-from .series import SeriesWriter, export_xdmf, read_frame
+from .series import SeriesWriter, read_frame
+from .xdmf import export_xdmf
 from .sources import SimulationSource
 
 __all__ = ["Flow", "Stage"]
@@ -85,7 +86,8 @@ class Flow:
         write : bool
             Write this output as a series when the flow runs.
         xdmf : bool
-            Also export the series as XDMF through meshio at the end (fixed topology only).
+            Also export the series as XDMF + HDF5 at the end (fixed topology only,
+            :func:`pipeline.xdmf.export_xdmf`).
 
         Returns
         -------
