@@ -21,26 +21,49 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
+    """One-line errors; every option's help shows its default; ``help_hook(parser)``, when
+    set, completes the help (scene defaults, kernel names) only when it is printed, so that
+    ordinary commands do not import the scenes or Numba to build it."""
+
+    help_hook = None
+
     def error(self, message):  # one line, not usage + message
         raise UsageError(message)
+
+    def format_help(self):
+        if self.help_hook is not None:
+            self.help_hook(self)
+        for action in self._actions:
+            default = action.default
+            if (action.help and action.help is not argparse.SUPPRESS and action.option_strings
+                    and default not in (None, False, [], argparse.SUPPRESS)
+                    and "default" not in action.help):
+                action.help += f" (default: {default})"
+        return super().format_help()
 
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="blobflow", description="Particle simulations and implicit surfaces as "
                      "VTK pipelines, written as ParaView-ready time series.")
+    parser.add_argument("--version", action="version", version=f"blobflow {_version()}",
+                        help="print blobflow's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
     p_list = sub.add_parser("list", help="list the installed scenes")
     p_list.add_argument("-v", "--verbose", action="store_true",
-                        help="also list every scene's parameters with defaults")
+                        help="also list every scene's parameters with defaults, types and "
+                             "descriptions")
 
     p_run = sub.add_parser("run", help="run a scene into an output folder")
     p_run.add_argument("scene", help="scene name (see `blobflow list`)")
     length = p_run.add_mutually_exclusive_group()
-    length.add_argument("--duration", type=float, metavar="S", help="simulated seconds")
-    length.add_argument("--frames", type=int, metavar="N", help="number of frames")
-    p_run.add_argument("--fps", type=float, metavar="F", help="frames per second")
+    length.add_argument("--duration", type=float, metavar="S",
+                        help="simulated seconds (default: the scene's, listed below)")
+    length.add_argument("--frames", type=int, metavar="N",
+                        help="number of frames instead of --duration")
+    p_run.add_argument("--fps", type=float, metavar="F",
+                       help="frames per second (default: the scene's, listed below)")
     p_run.add_argument("--out", metavar="DIR", help="output folder (default outputs/SCENE)")
     p_run.add_argument("--set", dest="assignments", action="append", default=[],
                        metavar="NAME=VALUE", help="override a scene parameter (repeatable)")
@@ -49,6 +72,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--no-render", action="store_true",
                        help="write the series only, no turntable GIF or movie")
     p_run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p_run.help_hook = _scene_defaults_epilog
 
     p_render = sub.add_parser("render", help="render series offscreen: a time-lapse or a turntable")
     p_render.add_argument("series", nargs="+", help=".pvd or .series files drawn together")
@@ -76,20 +100,62 @@ def _build_parser() -> argparse.ArgumentParser:
                                 "wrote the particles (its scene.json), else 0.01")
     p_surface.add_argument("--cell-size", type=float, metavar="H",
                            help="voxel edge (m), default radius / 2")
-    p_surface.add_argument("--kernel", help="splatting kernel (default sph)")
+    p_surface.add_argument("--kernel", metavar="K", help="splatting kernel")
     p_surface.add_argument("--smooth-iterations", type=int, metavar="N",
-                           help="windowed-sinc iterations (default 30)")
+                           help="windowed-sinc iterations")
     p_surface.add_argument("--option", dest="options", action="append", default=[],
                            metavar="NAME=VALUE", help="further surface option (repeatable), as "
                                                       "in pipeline.surface.surface_stages")
     p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
     p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_cluster_options(p_surface)
+    p_surface.help_hook = _surface_help
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
     _add_export_parser(sub)
+    _add_paraview_parser(sub)
     return parser
+
+
+def _version() -> str:
+    from .version import version
+
+    return version()
+
+
+def _scene_defaults_epilog(parser) -> None:
+    """``run --help``: every installed scene's default duration, fps and outputs' count."""
+    from .scene import available_scenes, load_scene
+
+    lines = ["scenes (default duration at default fps; `blobflow list --verbose` shows their "
+             "parameters):"]
+    for name in available_scenes():
+        try:
+            scene = load_scene(name)
+        except Exception as exc:  # noqa: BLE001 - one broken scene must not hide the others
+            lines.append(f"  {name}: cannot be loaded ({type(exc).__name__})")
+            continue
+        lines.append(f"  {name}: {scene.duration:g} s at {scene.fps:g} fps")
+    parser.epilog = "\n".join(lines)
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+
+
+def _surface_help(parser) -> None:
+    """``surface --help``: the kernels and the defaults of the surface options."""
+    from filters.kernels import SPLAT_KERNELS
+
+    from .surface_options import SURFACE_DEFAULTS
+
+    for action in parser._actions:
+        if action.dest == "kernel" and "one of" not in action.help:
+            action.help += (f": one of {', '.join(SPLAT_KERNELS)} "
+                            f"(default: {SURFACE_DEFAULTS['kernel']})")
+        elif action.dest == "smooth_iterations" and "default" not in action.help:
+            action.help += f" (default: {SURFACE_DEFAULTS['smooth_iterations']})"
+    parser.epilog = ("further options (--option NAME=VALUE) and their defaults: "
+                     + ", ".join(f"{k}={v}" for k, v in SURFACE_DEFAULTS.items()
+                                 if k not in ("radius", "kernel", "smooth_iterations")))
 
 
 def _add_cluster_options(parser) -> None:
@@ -244,6 +310,7 @@ def _cmd_list(args) -> int:
             continue
         print(f"{name:<{width}}  {scene.description}")
         if args.verbose:
+            print(f"    (default run: {scene.duration:g} s at {scene.fps:g} fps)")
             for p in scene.parameters.values():
                 print(f"    {p.name} = {p.default!r}  ({p.kind}) {p.doc}")
     return 0
@@ -318,6 +385,11 @@ def _remove_previous_run(out: Path, record: dict) -> None:
             path.unlink(missing_ok=True)
         if (out / name).is_dir():
             shutil.rmtree(out / name)
+    _remove_renders(out)
+
+
+def _remove_renders(out: Path) -> None:
+    """Delete the renders (:data:`_RUN_FILES`) a previous run wrote in ``out``."""
     for file_name in _RUN_FILES:
         (out / file_name).unlink(missing_ok=True)
 
@@ -387,6 +459,8 @@ def _cmd_run(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if saved is not None and not args.resume:
         _remove_previous_run(out, saved)
+    elif saved is not None:  # resumed: the renders of the shorter run no longer show it
+        _remove_renders(out)
     record = _scene_record(scene, parameters, fps, flow.written_outputs())
     _write_text_atomic(out / "scene.json", json.dumps(record, indent=1, default=list) + "\n")
     try:
@@ -497,6 +571,40 @@ def _cmd_export(args) -> int:
     return 0
 
 
+# -- paraview -----------------------------------------------------------------------------------
+def _add_paraview_parser(sub) -> None:
+    p = sub.add_parser("paraview", help="where blobflow's ParaView plugin is, or start ParaView "
+                       "with it", description="Print the paths of blobflow's ParaView plugin "
+                       "(filter 'blobflow Particle Surface', one source per scene) and how to "
+                       "load it; --launch starts the ParaView GUI with it loaded.")
+    p.add_argument("--launch", action="store_true",
+                   help="start `paraview` with the plugin loaded (and open FILES)")
+    p.add_argument("files", nargs="*", metavar="FILE", help="files to open with --launch")
+
+
+def _cmd_paraview(args) -> int:
+    import shutil
+    import subprocess
+
+    here = Path(__file__).resolve().parent
+    plugin, startup = here / "paraview_plugin.py", here / "paraview_startup.py"
+    if not args.launch:
+        if args.files:
+            raise UsageError("FILE arguments need --launch")
+        print(f"ParaView plugin: {plugin}\n"
+              f"  GUI:      paraview --script={startup}\n"
+              f"            (or Tools > Manage Plugins > Load New, where the ParaView's Python "
+              f"plugins load)\n"
+              f"  pvpython: exec(open({str(startup)!r}).read())\n"
+              f"  blobflow's Python (BLOBFLOW_PYTHON): {sys.executable}")
+        return 0
+    paraview = shutil.which("paraview")
+    if paraview is None:
+        raise UsageError("paraview is not on PATH (Debian: apt-get install paraview)")
+    env = dict(os.environ, BLOBFLOW_PYTHON=sys.executable)
+    return subprocess.call([paraview, f"--script={startup}", *args.files], env=env)
+
+
 # -- info ---------------------------------------------------------------------------------------
 def _cmd_info(args) -> int:
     import numpy as np
@@ -535,15 +643,48 @@ def _cmd_info(args) -> int:
     return 0
 
 
+_COMPILE_NOTICE = None
+
+
+def _announce_compilation() -> None:
+    """Print one line on stderr when Numba starts compiling a kernel that is not in its cache
+    (the first run; later runs load the cached kernels and print nothing), once per call."""
+    global _COMPILE_NOTICE
+    from numba.core import event
+
+    class Notice(event.Listener):
+        said = False
+
+        def on_start(self, event_):
+            if not self.said:
+                self.said = True
+                from tqdm.auto import tqdm
+
+                tqdm.write("blobflow: compiling Numba kernels (first run only: about a minute, "
+                           "cached for later runs)", file=sys.stderr)
+
+        def on_end(self, event_):
+            pass
+
+    if _COMPILE_NOTICE is None:
+        _COMPILE_NOTICE = Notice()
+        event.register("numba:compile", _COMPILE_NOTICE)
+    _COMPILE_NOTICE.said = False
+
+
 def main(argv=None) -> int:
     """Entry point of the ``blobflow`` console script; returns the exit code."""
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
+        if args.command in ("run", "surface", "render"):
+            _announce_compilation()
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
                    "surface": _cmd_surface, "info": _cmd_info,
-                   "export": _cmd_export}[args.command]
+                   "export": _cmd_export, "paraview": _cmd_paraview}[args.command]
         return command(args)
+    except SystemExit as exc:  # --help, --version
+        return exc.code if isinstance(exc.code, int) else 0
     except UsageError as exc:
         print(f"blobflow: error: {exc}", file=sys.stderr)
         return 2
