@@ -11,6 +11,13 @@ it runs this module in blobflow's own environment, ``PYTHON -m pipeline.bridge C
     surface IN OUT OPTIONS_JSON   the surface of the points of the VTK XML file IN
                                   (:func:`pipeline.surface.reconstruct` with the options of the
                                   JSON object), written to OUT (.vtp)
+    serve                         the same requests, one JSON line each on stdin
+                                  (``{"command": "surface", "source": IN, "target": OUT,
+                                  "options": {...}}``), one JSON answer line each on stdout
+                                  (``{"ok": true}`` or ``{"ok": false, "error": "...",
+                                  "code": 1 or 2}``), until stdin closes: the plugin keeps one
+                                  such process, so only its first request pays for the imports
+                                  and for loading the compiled kernels
 
 Scenes run through the command line (``PYTHON -m pipeline run SCENE --out DIR --resume``),
 which writes each frame as it goes; the plugin reads the frames from the collection. Errors are
@@ -23,7 +30,7 @@ import json
 import sys
 from pathlib import Path
 
-__all__ = ["describe", "main"]
+__all__ = ["describe", "serve", "main"]
 
 
 def _jsonable(value):
@@ -92,17 +99,61 @@ def _surface(source: str, target: str, options_json: str) -> None:
     write_frame(reconstruct(particles, radius, **options), target)
 
 
+def _answer(request: dict) -> dict:
+    """One request of :func:`serve` -> its answer."""
+    from filters.simulation import SimulationError
+
+    try:
+        if not isinstance(request, dict) or request.get("command") != "surface":
+            raise ValueError("a request is {\"command\": \"surface\", \"source\": ..., "
+                             "\"target\": ..., \"options\": {...}}")
+        _surface(str(request["source"]), str(request["target"]),
+                 json.dumps(request.get("options", {})))
+    except (TypeError, ValueError, KeyError) as exc:
+        return {"ok": False, "code": 2, "error": f"blobflow: error: {exc}"}
+    except (SimulationError, RuntimeError, OSError) as exc:
+        return {"ok": False, "code": 1, "error": f"blobflow: {type(exc).__name__}: {exc}"}
+    return {"ok": True}
+
+
+def serve(stdin=None, stdout=None) -> None:
+    """Answer JSON-line requests from ``stdin`` on ``stdout`` until ``stdin`` closes.
+
+    Anything else written to ``sys.stdout`` while a request runs goes to stderr, so that the
+    answers stay one line each.
+    """
+    stdin = sys.stdin if stdin is None else stdin
+    stdout = sys.stdout if stdout is None else stdout
+    for line in stdin:
+        if not line.strip():
+            continue
+        try:
+            request = json.loads(line)
+        except ValueError as exc:
+            answer = {"ok": False, "code": 2, "error": f"blobflow: error: bad request ({exc})"}
+        else:
+            previous, sys.stdout = sys.stdout, sys.stderr
+            try:
+                answer = _answer(request)
+            finally:
+                sys.stdout = previous
+        stdout.write(json.dumps(answer) + "\n")
+        stdout.flush()
+
+
 def main(argv=None) -> int:
     """``python -m pipeline.bridge COMMAND ...``; returns the exit code."""
     from filters.simulation import SimulationError
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    usage = "usage: python -m pipeline.bridge describe | surface IN OUT OPTIONS_JSON"
+    usage = "usage: python -m pipeline.bridge describe | surface IN OUT OPTIONS_JSON | serve"
     try:
         if argv == ["describe"]:
             print(json.dumps(describe()))
         elif len(argv) == 4 and argv[0] == "surface":
             _surface(*argv[1:])
+        elif argv == ["serve"]:
+            serve()
         else:
             print(usage, file=sys.stderr)
             return 2

@@ -14,8 +14,8 @@ menus:
 
 This file is ParaView's side and is never imported by blobflow. ParaView runs on its own Python
 and VTK, where blobflow's dependencies cannot be imported, so the plugin imports nothing of
-blobflow: it runs ``PYTHON -m pipeline.bridge`` and ``PYTHON -m pipeline run`` in blobflow's
-own environment and exchanges VTK XML files with them. ``PYTHON`` is, in order: the
+blobflow: it runs ``PYTHON -m pipeline.bridge`` (one worker process per session for the surfaces) and
+``PYTHON -m pipeline run`` in blobflow's own environment and exchanges VTK XML files with them. ``PYTHON`` is, in order: the
 environment variable ``BLOBFLOW_PYTHON``; the interpreter of the ``blobflow`` command on
 ``PATH``; the ``.venv`` of the source tree this file is in; the interpreter of the environment
 this file is installed in. Frames of scene runs go to ``BLOBFLOW_PARAVIEW_CACHE`` (default
@@ -109,6 +109,37 @@ def _run_blobflow(arguments, timeout=None):
 
 
 _DESCRIPTION = None
+_WORKER = None  # one `python -m pipeline.bridge serve` per ParaView session
+
+
+def _worker_request(request):
+    """Send one request to blobflow's worker process (started on first use, restarted once
+    if it died) and return its answer; RuntimeError with blobflow's message on failure."""
+    global _WORKER
+    for attempt in (0, 1):
+        if _WORKER is None or _WORKER.poll() is not None:
+            log = tempfile.TemporaryFile(mode="w+", prefix="blobflow-worker-")
+            _WORKER = subprocess.Popen([blobflow_python(), "-m", "pipeline.bridge", "serve"],
+                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                       stderr=log, text=True, env=_environment())
+            _WORKER.log = log
+        try:
+            _WORKER.stdin.write(json.dumps(request) + "\n")
+            _WORKER.stdin.flush()
+            line = _WORKER.stdout.readline()
+        except (BrokenPipeError, OSError):
+            line = ""
+        if line:
+            answer = json.loads(line)
+            if not answer.get("ok"):
+                raise RuntimeError(answer.get("error", "blobflow failed"))
+            return answer
+        _WORKER.wait(timeout=30)
+        _WORKER.log.seek(0)
+        lines = [l for l in _WORKER.log.read().splitlines() if l.strip()]
+        if attempt:
+            raise RuntimeError(lines[-1] if lines else "blobflow's worker process died")
+    return None
 
 
 def description():
@@ -272,8 +303,8 @@ class ParticleSurface(VTKPythonAlgorithmBase):
         with tempfile.TemporaryDirectory(prefix="blobflow-pv-") as folder:
             source, target = Path(folder) / "particles.vtp", Path(folder) / "surface.vtp"
             _write_points(data, source)
-            _run_blobflow(["pipeline.bridge", "surface", str(source), str(target),
-                           json.dumps(self.options())])
+            _worker_request({"command": "surface", "source": str(source),
+                             "target": str(target), "options": self.options()})
             output.ShallowCopy(_read(target))
         return 1
 

@@ -7,6 +7,7 @@ written to OUT_DIR for the test to compare); the ``bouncing`` scene source runs 
 
 import json
 import sys
+import time
 
 startup, particles, radius, out = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4]
 ns = {"__file__": startup, "__name__": "__main__"}
@@ -28,7 +29,9 @@ result["panel"] = {name: str(surface.GetPropertyValue(name)) for name in (
     "Normals", "Attributes")}
 result["surfaces"] = []
 for index, t in enumerate(list(reader.TimestepValues)[:2]):
+    start = time.perf_counter()
     surface.UpdatePipeline(t)
+    seconds = time.perf_counter() - start
     mesh = servermanager.Fetch(surface)
     edges = vtkFeatureEdges()
     edges.SetInputData(mesh)
@@ -43,7 +46,8 @@ for index, t in enumerate(list(reader.TimestepValues)[:2]):
     writer.Write()
     result["surfaces"].append({"time": t, "points": mesh.GetNumberOfPoints(),
                                "triangles": mesh.GetNumberOfPolys(),
-                               "open_edges": edges.GetOutput().GetNumberOfLines()})
+                               "open_edges": edges.GetOutput().GetNumberOfLines(),
+                               "seconds": seconds})
 
 scene = ns["blobflowbouncing"](Count=2, FPS=10.0, Duration=0.3, Folder=f"{out}/run")
 scene.UpdatePipelineInformation()
