@@ -2,7 +2,8 @@
 
 No physics here.  :class:`SimulationSource` publishes a simulation as a temporal VTK source,
 :class:`Flow` chains it with any VTK algorithms into named outputs and writes them as time series
-(:mod:`pipeline.series`; XDMF, :mod:`pipeline.xdmf`; USD, :mod:`pipeline.usd`), and :mod:`pipeline.scene` finds ready-made scenes through entry points.
+(:mod:`pipeline.series`; exports: XDMF, :mod:`pipeline.xdmf`; USD, :mod:`pipeline.usd`), and
+:mod:`pipeline.scene` finds ready-made scenes through entry points.
 """
 
 from .compose import Flow, Stage
