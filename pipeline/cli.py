@@ -13,6 +13,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from . import cli_tools
+
 __all__ = ["main"]
 
 
@@ -72,7 +74,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--no-render", action="store_true",
                        help="write the series only, no turntable GIF or movie")
     p_run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    p_run.help_hook = _scene_defaults_epilog
+    p_run.help_hook = cli_tools.scene_defaults_epilog
 
     p_render = sub.add_parser("render", help="render series offscreen: a time-lapse or a turntable")
     p_render.add_argument("series", nargs="+", help=".pvd or .series files drawn together")
@@ -109,12 +111,12 @@ def _build_parser() -> argparse.ArgumentParser:
     p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
     p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_cluster_options(p_surface)
-    p_surface.help_hook = _surface_help
+    p_surface.help_hook = cli_tools.surface_help
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
-    _add_export_parser(sub)
-    _add_paraview_parser(sub)
+    cli_tools.add_export_parser(sub)
+    cli_tools.add_paraview_parser(sub)
     return parser
 
 
@@ -122,40 +124,6 @@ def _version() -> str:
     from .version import version
 
     return version()
-
-
-def _scene_defaults_epilog(parser) -> None:
-    """``run --help``: every installed scene's default duration, fps and outputs' count."""
-    from .scene import available_scenes, load_scene
-
-    lines = ["scenes (default duration at default fps; `blobflow list --verbose` shows their "
-             "parameters):"]
-    for name in available_scenes():
-        try:
-            scene = load_scene(name)
-        except Exception as exc:  # noqa: BLE001 - one broken scene must not hide the others
-            lines.append(f"  {name}: cannot be loaded ({type(exc).__name__})")
-            continue
-        lines.append(f"  {name}: {scene.duration:g} s at {scene.fps:g} fps")
-    parser.epilog = "\n".join(lines)
-    parser.formatter_class = argparse.RawDescriptionHelpFormatter
-
-
-def _surface_help(parser) -> None:
-    """``surface --help``: the kernels and the defaults of the surface options."""
-    from filters.kernels import SPLAT_KERNELS
-
-    from .surface_options import SURFACE_DEFAULTS
-
-    for action in parser._actions:
-        if action.dest == "kernel" and "one of" not in action.help:
-            action.help += (f": one of {', '.join(SPLAT_KERNELS)} "
-                            f"(default: {SURFACE_DEFAULTS['kernel']})")
-        elif action.dest == "smooth_iterations" and "default" not in action.help:
-            action.help += f" (default: {SURFACE_DEFAULTS['smooth_iterations']})"
-    parser.epilog = ("further options (--option NAME=VALUE) and their defaults: "
-                     + ", ".join(f"{k}={v}" for k, v in SURFACE_DEFAULTS.items()
-                                 if k not in ("radius", "kernel", "smooth_iterations")))
 
 
 def _add_cluster_options(parser) -> None:
@@ -531,78 +499,14 @@ def _cmd_render(args) -> int:
     return 0
 
 
-# -- export -------------------------------------------------------------------------------------
-def _add_export_parser(sub) -> None:
-    p = sub.add_parser("export", help="write series as one USD stage (Blender, Houdini, ...)",
-                       description="Write one or more series (.pvd or .series) as one USD stage: "
-                       "particles as Points (widths, velocities, ids), surfaces as Meshes whose "
-                       "topology may change every frame, strands as BasisCurves; one time "
-                       "sample per frame, z-up, metres. Needs usd-core "
-                       "(pip install \"blobflow[usd]\").")
-    p.add_argument("series", nargs="+", help=".pvd or .series files, one prim each")
-    p.add_argument("--usd", required=True, metavar="FILE",
-                   help="output stage: .usd or .usdc (binary) or .usda (text)")
-    p.add_argument("--fps", type=float, metavar="F",
-                   help="time codes per second (default: the run's fps from its scene.json, "
-                        "else from the frame times)")
-    p.add_argument("--radius", type=float, metavar="R",
-                   help="particle radius (m) for the points' widths where a series has no "
-                        "radius array (default: half the run's spacing, else 0.005)")
-
-
-def _cmd_export(args) -> int:
-    from .series import SeriesError, validate_series
-    from .usd import UsdUnavailableError, export_usd
-
-    out = Path(args.usd)
-    if out.suffix not in (".usd", ".usda", ".usdc"):
-        raise UsageError(f"--usd must end in .usd, .usda or .usdc, got {out}")
-    try:
-        for path in args.series:
-            validate_series(path)  # every frame, before anything is written
-    except (FileNotFoundError, SeriesError) as exc:
-        raise UsageError(str(exc)) from None
-    _check_writable(out.parent if str(out.parent) else Path("."))
-    try:
-        path = export_usd(args.series, out, fps=args.fps, radius=args.radius)
-    except (UsdUnavailableError, ValueError) as exc:
-        raise UsageError(str(exc)) from None
-    print(f"wrote {path}")
-    return 0
-
-
-# -- paraview -----------------------------------------------------------------------------------
-def _add_paraview_parser(sub) -> None:
-    p = sub.add_parser("paraview", help="where blobflow's ParaView plugin is, or start ParaView "
-                       "with it", description="Print the paths of blobflow's ParaView plugin "
-                       "(filter 'blobflow Particle Surface', one source per scene) and how to "
-                       "load it; --launch starts the ParaView GUI with it loaded.")
-    p.add_argument("--launch", action="store_true",
-                   help="start `paraview` with the plugin loaded (and open FILES)")
-    p.add_argument("files", nargs="*", metavar="FILE", help="files to open with --launch")
-
-
-def _cmd_paraview(args) -> int:
-    import shutil
-    import subprocess
-
-    here = Path(__file__).resolve().parent
-    plugin, startup = here / "paraview_plugin.py", here / "paraview_startup.py"
-    if not args.launch:
-        if args.files:
-            raise UsageError("FILE arguments need --launch")
-        print(f"ParaView plugin: {plugin}\n"
-              f"  GUI:      paraview --script={startup}\n"
-              f"            (or Tools > Manage Plugins > Load New, where the ParaView's Python "
-              f"plugins load)\n"
-              f"  pvpython: exec(open({str(startup)!r}).read())\n"
-              f"  blobflow's Python (BLOBFLOW_PYTHON): {sys.executable}")
-        return 0
-    paraview = shutil.which("paraview")
-    if paraview is None:
-        raise UsageError("paraview is not on PATH (Debian: apt-get install paraview)")
-    env = dict(os.environ, BLOBFLOW_PYTHON=sys.executable)
-    return subprocess.call([paraview, f"--script={startup}", *args.files], env=env)
+def _usage_errors(command):
+    """``command`` with its ValueError reported as a usage error (one line, exit code 2)."""
+    def run(args):
+        try:
+            return command(args)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+    return run
 
 
 # -- info ---------------------------------------------------------------------------------------
@@ -643,45 +547,17 @@ def _cmd_info(args) -> int:
     return 0
 
 
-_COMPILE_NOTICE = None
-
-
-def _announce_compilation() -> None:
-    """Print one line on stderr when Numba starts compiling a kernel that is not in its cache
-    (the first run; later runs load the cached kernels and print nothing), once per call."""
-    global _COMPILE_NOTICE
-    from numba.core import event
-
-    class Notice(event.Listener):
-        said = False
-
-        def on_start(self, event_):
-            if not self.said:
-                self.said = True
-                from tqdm.auto import tqdm
-
-                tqdm.write("blobflow: compiling Numba kernels (first run only: about a minute, "
-                           "cached for later runs)", file=sys.stderr)
-
-        def on_end(self, event_):
-            pass
-
-    if _COMPILE_NOTICE is None:
-        _COMPILE_NOTICE = Notice()
-        event.register("numba:compile", _COMPILE_NOTICE)
-    _COMPILE_NOTICE.said = False
-
-
 def main(argv=None) -> int:
     """Entry point of the ``blobflow`` console script; returns the exit code."""
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
         if args.command in ("run", "surface", "render"):
-            _announce_compilation()
+            cli_tools.announce_compilation()
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
                    "surface": _cmd_surface, "info": _cmd_info,
-                   "export": _cmd_export, "paraview": _cmd_paraview}[args.command]
+                   "export": _usage_errors(cli_tools.export_command),
+                   "paraview": _usage_errors(cli_tools.paraview_command)}[args.command]
         return command(args)
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else 0

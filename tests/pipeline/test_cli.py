@@ -218,9 +218,9 @@ def test_one_line_notice_when_numba_compiles(capsys):
     # the notice listens to Numba's compile events, which fire only on a cache miss
     from numba import njit
 
-    from pipeline.cli import _announce_compilation
+    from pipeline.cli_tools import announce_compilation
 
-    _announce_compilation()
+    announce_compilation()
 
     @njit(cache=False)
     def twice(x):
