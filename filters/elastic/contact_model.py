@@ -211,15 +211,20 @@ class ContactModel:
             hold).
         """
         self._h = float(h)
-        clearance = self.clearance(x0)[self.active]
-        if clearance.size and not clearance.min() > 0.0:
-            j = int(np.argmin(clearance))
-            raise ValueError(f"contact point {j} is {-clearance[j]:.3g} m inside a collider: "
-                             "elastic objects must start outside their colliders")
+        self.check_outside(x0)
         self.touching = int(lag_normal_forces(x0, self.nodes, self.weights, *self._args(),
                                               self.dhat, self.kappa, self.point_masses,
                                               self.damping_ratio, self._lagged))
         return self.touching
+
+    def check_outside(self, x):
+        """Raise ``ValueError`` if a contact point at positions ``x`` is on or inside a
+        collider (a state the barrier cannot hold)."""
+        clearance = np.where(self.active, self.clearance(x), np.inf)
+        if clearance.size and not clearance.min() > 0.0:
+            j = int(np.argmin(clearance))
+            raise ValueError(f"positions: contact point {j} is {-clearance[j]:.3g} m inside a "
+                             "collider; elastic objects must start outside their colliders")
 
     def value(self, x0, dx):
         """Barrier plus friction (J) of the step ``dx`` (N, 3) from ``x0``; ``inf`` when a

@@ -164,6 +164,11 @@ class MassSpringSimulation(Simulation):
             "bend_stiffness", bend_stiffness, 0.0)
         damping = check_range("damping", damping, 0.0)
         bend_damping = check_range("bend_damping", bend_damping, 0.0)
+        check_range("contact_ratio", contact_ratio, 0.0, math.inf, low_inclusive=False)
+        check_range("slip_velocity", slip_velocity, 0.0, math.inf, low_inclusive=False)
+        if contact_stiffness is not None:
+            check_range("contact_stiffness", contact_stiffness, 0.0, math.inf,
+                        low_inclusive=False)
         check_choice("damping_mode", damping_mode, DAMPING_MODES)
         drag = check_range("drag", drag, 0.0)
         gravity = check_finite_vector("gravity", gravity, 3)
@@ -204,6 +209,8 @@ class MassSpringSimulation(Simulation):
                                         slip_velocity=slip_velocity,
                                         elastic_diagonal=self.system.elastic_diagonal())
         self.state = State(topology.positions, velocities)
+        if self.contact is not None:
+            self.contact.check_outside(self.state.positions)
         self.state.velocities[topology.pinned] = 0.0
         self.last_info = None
 

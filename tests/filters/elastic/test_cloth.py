@@ -209,6 +209,13 @@ def test_bad_input_raises_value_error():
         cloth_grid(1, 4)
     with pytest.raises(ValueError, match="scheme"):
         ClothSimulation.grid(4, 4, scheme="verlet")
+    with pytest.raises(ValueError, match="slip_velocity"):  # checked with or without colliders
+        ClothSimulation.grid(4, 4, slip_velocity=-1.0)
+    with pytest.raises(ValueError, match="bend_damping"):
+        HairSimulation([[0, 0, 0]], (0, 0, 1), bend_damping=-1.0)
+    floor = Colliders().add(Plane((0, 0, 0), (0, 0, 1)))
+    with pytest.raises(ValueError, match="inside a collider"):  # starts through the floor
+        ClothSimulation.grid(4, 4, origin=(0, 0, -0.1), colliders=floor)
     with pytest.raises(ValueError, match="segments"):
         hair_strands([[0, 0, 0]], (0, 0, 1), segments=1)
 

@@ -96,7 +96,7 @@ def test_line_search_filter_keeps_every_point_outside():
     assert steps.min() == pytest.approx(alpha) and steps[3] == 1.0
 
 
-def _block(angle_deg, scheme, h, mu=0.5):
+def _block(angle_deg, scheme, h, mu=0.5, stiffness=1e3):
     """A 10 cm cube of 8 particles (1 kg, every pair a spring) resting on a plane tilted by
     ``angle_deg`` about the y axis; returns the simulation and the uphill unit vector."""
     a = math.radians(angle_deg)
@@ -109,19 +109,22 @@ def _block(angle_deg, scheme, h, mu=0.5):
     top = SpringTopology(pos, pairs, np.full(len(pairs), STRETCH, np.int8), np.full(8, 0.125),
                          np.zeros(8, bool), "polys", np.array([0]), np.zeros(0, np.int64))
     plane = Colliders(friction=mu, thickness=1e-3).add(Plane((0, 0, 0), tuple(n)))
-    sim = MassSpringSimulation(top, stretch_stiffness=1e3, damping=0.5, scheme=scheme,
+    sim = MassSpringSimulation(top, stretch_stiffness=stiffness, damping=0.5, scheme=scheme,
                                colliders=plane, max_dt=h)
     return sim, up
 
 
-@pytest.mark.parametrize("scheme, h", SCHEMES)
-def test_block_on_a_tilted_plane_sticks_below_the_friction_angle_and_slides_above(scheme, h):
+@pytest.mark.parametrize("scheme, h, stiffness, creep", [
+    *((scheme, h, 1e3, 1.0) for scheme, h in SCHEMES),
+    ("euler", 1e-3, 20.0, 2.0)])  # forward Euler: a soft block, whose position lags a step
+def test_block_on_a_tilted_plane_sticks_below_the_friction_angle_and_slides_above(
+        scheme, h, stiffness, creep):
     """Coulomb friction, mu = 0.5 (friction angle 26.6 degrees): at 20 degrees the block stays
     (static friction holds it with a creep below the slip velocity, 1 mm/s); at 35 degrees it
-    slides with a = g (sin a - mu cos a) = 1.609 m/s^2.  Measured: 0.48 mm in 1 s, and the
-    acceleration to 1e-4 in every scheme."""
+    slides with a = g (sin a - mu cos a) = 1.609 m/s^2.  Measured: 0.48 mm in 1 s (0.94 mm with
+    forward Euler), and the acceleration to 1e-4 in every scheme."""
     for angle in (20.0, 35.0):
-        sim, up = _block(angle, scheme, h)
+        sim, up = _block(angle, scheme, h, stiffness=stiffness)
         sim.advance_to(0.2)  # the normal contact settles
         s0 = sim.state.positions.mean(axis=0) @ up
         times = np.arange(1, 21) * 0.05
@@ -133,7 +136,7 @@ def test_block_on_a_tilted_plane_sticks_below_the_friction_angle_and_slides_abov
         assert sim.contact.clearance(sim.state.positions).min() > 0.0
         a = math.radians(angle)
         if angle < 26.0:
-            assert abs(travel[-1]) < sim.contact.slip_velocity * 1.0  # creeps < 1 mm in 1 s
+            assert abs(travel[-1]) < creep * sim.contact.slip_velocity * 1.0  # mm in 1 s
         else:
             accel = -2.0 * np.polyfit(times, travel, 2)[0]
             expected = 9.81 * (math.sin(a) - 0.5 * math.cos(a))
