@@ -49,7 +49,9 @@ terms, and for particles (``W = I``) it is the exact Gauss-Newton Hessian.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 
+import numba
 import numpy as np
 
 from ..validation import check_range
@@ -63,6 +65,23 @@ __all__ = ["ContactModel", "DEFAULT_STIFFNESS_RATIO", "DEFAULT_SLIP_VELOCITY", "
 DEFAULT_STIFFNESS_RATIO = 1.0
 #: Slip velocity (m/s) below which friction is static (creep slower than this).
 DEFAULT_SLIP_VELOCITY = 1e-3
+
+#: Below this many contact points the kernels run on one thread (a parallel region costs more
+#: than the work, and on a busy machine a descheduled worker stalls it).
+PARALLEL_MIN_POINTS = 50_000
+
+
+@contextmanager
+def _threads(points):
+    if points >= PARALLEL_MIN_POINTS:
+        yield
+        return
+    previous = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -212,9 +231,10 @@ class ContactModel:
         """
         self._h = float(h)
         self.check_outside(x0)
-        self.touching = int(lag_normal_forces(x0, self.nodes, self.weights, *self._args(),
-                                              self.dhat, self.kappa, self.point_masses,
-                                              self.damping_ratio, self._lagged))
+        with _threads(len(self)):
+            self.touching = int(lag_normal_forces(x0, self.nodes, self.weights, *self._args(),
+                                                  self.dhat, self.kappa, self.point_masses,
+                                                  self.damping_ratio, self._lagged))
         return self.touching
 
     def check_outside(self, x):
@@ -229,18 +249,20 @@ class ContactModel:
     def value(self, x0, dx):
         """Barrier plus friction (J) of the step ``dx`` (N, 3) from ``x0``; ``inf`` when a
         point would be on or inside a collider."""
-        contact_terms(x0, dx, self.nodes, self.weights, *self._args(), self.dhat, self.kappa,
-                      self._lagged, self.slip_velocity * self._h, self._h, self._grad_p[:0],
-                      self._hess_p[:0], self._energies)
+        with _threads(len(self)):
+            contact_terms(x0, dx, self.nodes, self.weights, *self._args(), self.dhat,
+                          self.kappa, self._lagged, self.slip_velocity * self._h, self._h,
+                          self._grad_p[:0], self._hess_p[:0], self._energies)
         return float(self._energies.sum())
 
     def derivatives(self, x0, dx, grad, blocks):
         """Barrier plus friction (J) of the step ``dx``; adds its gradient to ``grad`` (N, 3)
         and writes the particles' Hessian blocks (a bound from above for embedded points) into
         ``blocks`` (N, 3, 3)."""
-        contact_terms(x0, dx, self.nodes, self.weights, *self._args(), self.dhat, self.kappa,
-                      self._lagged, self.slip_velocity * self._h, self._h, self._grad_p,
-                      self._hess_p, self._energies)
+        with _threads(len(self)):
+            contact_terms(x0, dx, self.nodes, self.weights, *self._args(), self.dhat,
+                          self.kappa, self._lagged, self.slip_velocity * self._h, self._h,
+                          self._grad_p, self._hess_p, self._energies)
         scatter_to_particles(self.nodes, self.weights, self._grad_p, self._hess_p, grad, blocks)
         return float(self._energies.sum())
 
@@ -248,24 +270,27 @@ class ContactModel:
         """Largest fraction in [0, 1] of the step ``d`` (N, 3) from ``x0 + dx`` that brings no
         contact point closer to a collider than :attr:`KEEP` times its distance (the
         feasibility filter of the line search, Li et al. 2020)."""
-        feasible_steps(x0, dx, d, self.nodes, self.weights, *self._args(), self.KEEP,
-                       self._steps)
+        with _threads(len(self)):
+            feasible_steps(x0, dx, d, self.nodes, self.weights, *self._args(), self.KEEP,
+                           self._steps)
         return float(self._steps.min(initial=1.0))
 
     def particle_steps(self, x0, dx, d):
         """Per particle, a fraction in [0, 1] of ``d`` (N, 3) that keeps its contact points
         feasible when each particle moves by its own fraction (the smallest over a particle's
         points; one common fraction for embedded points, whose particles move together)."""
-        feasible_steps(x0, dx, d, self.nodes, self.weights, *self._args(), self.KEEP,
-                       self._steps)
+        with _threads(len(self)):
+            feasible_steps(x0, dx, d, self.nodes, self.weights, *self._args(), self.KEEP,
+                           self._steps)
         if not self.identity:
             return np.full(self.n_particles, float(self._steps.min(initial=1.0)))
         return self._steps.copy()
 
     def energy(self, x):
         """Barrier (contact) energy (J) at positions ``x`` (N, 3)."""
-        barrier_energies(x, self.nodes, self.weights, *self._args(), self.dhat, self.kappa,
-                         self._energies)
+        with _threads(len(self)):
+            barrier_energies(x, self.nodes, self.weights, *self._args(), self.dhat, self.kappa,
+                             self._energies)
         return float(self._energies.sum())
 
     def clearance(self, x):
@@ -273,7 +298,8 @@ class ContactModel:
         (negative inside an obstacle)."""
         out = np.empty(self.nodes.shape[0])
         c = self.colliders
-        contact_clearance(x, self.nodes, self.weights, c.planes, c.spheres, c.boxes, out)
+        with _threads(len(self)):
+            contact_clearance(x, self.nodes, self.weights, c.planes, c.spheres, c.boxes, out)
         return out
 
     def points(self, x):
