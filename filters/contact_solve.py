@@ -8,7 +8,8 @@ position increment ``dx`` from the start positions ``x0``,
 
 with ``C`` the contact model's penalty and friction terms and ``Q`` the scheme's own part:
 
-* explicit schemes (:func:`filters.integrators.euler`, :func:`~filters.integrators.symplectic_euler`):
+* explicit schemes (:func:`filters.integrators.euler`,
+  :func:`~filters.integrators.symplectic_euler`):
   ``Q = |dx - dx*|_M^2 / (2 h^2)`` around the increment ``dx*`` of the explicit update, so the
   contact impulses are the smallest change of momentum that satisfies the contacts -- the
   velocity-level response of Bridson, Fedkiw & Anderson (2002, "Robust treatment of collisions,

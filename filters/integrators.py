@@ -345,8 +345,12 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         :data:`filters.linalg.DEFAULT_OMEGA`; only with a solver given by name).
     contact : contact model, optional
         Contacts and friction (:class:`filters.elastic.contact_model.ContactModel`): their
-        penalty and friction potentials join ``E`` and their Hessian blocks the Newton
-        matrix, so that the step that lowers ``E`` also satisfies the contacts.
+        barrier, friction and normal-damping terms join ``E`` and their Hessian blocks the
+        Newton matrix, and the line search never lets a contact point cross a collider, so
+        that the step that lowers ``E`` also satisfies the contacts.  Newton then also stops
+        only on a step that gains no energy; if ``max_newton`` iterations leave one that
+        does, its velocities are scaled back to the energy of the start of the step
+        (:attr:`StepInfo.velocity_scale`).
 
     Returns
     -------
@@ -411,7 +415,8 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         def total_energy(dx):
             """Kinetic + potential + contact energy (J) after the step ``dx``."""
             x1 = x0 + dx
-            return step_kinetic_energy(dx, m, h) + system.potential_energy(x1) + contact.energy(x1)
+            return (step_kinetic_energy(dx, m, h) + system.potential_energy(x1)
+                    + contact.energy(x1))
 
         def gains(dx):
             return total_energy(dx) > e_before + decrement_tol

@@ -520,8 +520,9 @@ class SpringSystem(ImplicitSystem):
 
     def implicit_operator(self, x, xdir, h):
         """The matrix ``H`` of :meth:`system_matrix`, matrix-free: per spring the 6 entries of
-        the symmetric block ``K_s + C_s / h``, per particle ``(m/h^2 + drag/h) I`` (a :class:`filters.linalg.BlockOperator`; a product costs ~0.1 ms instead of
-        ~0.5 ms for the CSR matrix on the 64x64 benchmark cloth).
+        the symmetric block ``K_s + C_s / h``, per particle ``(m/h^2 + drag/h) I`` (a
+        :class:`filters.linalg.BlockOperator`; a product costs ~0.1 ms instead of ~0.5 ms for
+        the CSR matrix on the 64x64 benchmark cloth).
 
         Same arguments and same matrix as :meth:`system_matrix`; the PCG solver of
         :mod:`filters.integrators` uses it (the CSR matrix remains for direct solves).  The
