@@ -14,6 +14,9 @@ them). Stages that need the particles read them on their second input port
 ``MarchingCubes``
     vtkFlyingEdges3D at ``value`` (0 for our fields): one watertight vtkPolyData, bricks
     contoured in voxel-index coordinates and stitched (:mod:`pipeline.contour`).
+``ClipBox`` (with a tank whose walls the particles are mirrored across)
+    The surface cut exactly at the tank's walls and closed with flat faces
+    (:mod:`pipeline.liquid`); the smoothing stages keep those faces on the walls.
 ``FeatureSmoothing`` (mesh, particles)
     Feature-weighted Laplacian smoothing (Löschner et al. 2023,
     :mod:`filters.surface.smoothing`): flat liquid smoothed fully, droplets and sheets kept.
@@ -22,7 +25,10 @@ them). Stages that need the particles read them on their second input port
     (Shepard weights, :mod:`filters.surface.attributes`).
 ``Smooth``
     vtkWindowedSincPolyDataFilter (Taubin, Zhang & Golub 1996), whose low-pass filter does not
-    shrink the surface the way Laplacian smoothing does.
+    shrink the surface the way Laplacian smoothing does (:mod:`pipeline.mesh_stages`).
+``VolumeCorrection`` (mesh, particles)
+    Every closed piece offset along its normals until it encloses its particles' volume
+    (:mod:`pipeline.liquid`, :mod:`filters.surface.correction`).
 ``Normals``
     vtkPolyDataNormals without splitting (the mesh stays watertight).
 
@@ -39,22 +45,25 @@ import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkImageData, vtkPartitionedDataSet,
                                            vtkPointSet, vtkPolyData)
-from vtkmodules.vtkFiltersCore import vtkPolyDataNormals, vtkWindowedSincPolyDataFilter
 
-from filters.geometry import Shape
+from filters.geometry import Box, Shape
 from filters.kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from filters.surface.anisotropy import check_anisotropy
 from filters.surface.attributes import interpolate_attributes
+from filters.surface.clip import wall_constraints
 from filters.surface.csg import OPERATIONS, combine_dense, combine_sparse
 from filters.surface.ellipsoids import ANISOTROPIC_KERNELS
 from filters.surface.grid import DEFAULT_MAX_BYTES
 from filters.surface.smoothing import smooth_surface
 from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
                                    splat_sparse_anisotropic)
+from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
 from .algorithm import Algorithm, ParticleStage
 from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
+from .liquid import ClipBox, VolumeCorrection
+from .mesh_stages import Normals, Smooth
 from .surface_options import SURFACE_DEFAULTS
 
 __all__ = [
@@ -64,6 +73,8 @@ __all__ = [
     "InterpolateAttributes",
     "Smooth",
     "Normals",
+    "ClipBox",
+    "VolumeCorrection",
     "surface_stages",
 ]
 
@@ -145,6 +156,8 @@ class MetaballSplat(Algorithm):
         Memory budget (bytes) of the grid, >= 1.
     implicit : filters.geometry.Shape, optional
         A shape combined with the particle field by ``operation`` (:mod:`filters.surface.csg`).
+        A :class:`filters.geometry.Box` intersected with the field is the liquid's tank (see
+        ``mirror_walls``).
     operation : {"union", "intersection", "difference"}
         How ``implicit`` combines with the particles' field.
     anisotropic : bool
@@ -156,6 +169,14 @@ class MetaballSplat(Algorithm):
         Options of :func:`filters.surface.anisotropy.anisotropic_kernels` (``neighbor_radius_r``,
         ``stretch``, ``min_neighbors``, ``smoothing``, ``layer_band_r``, ``max_axis_r``,
         ``isotropy``).
+    mirror_walls : bool
+        With a :class:`filters.geometry.Box` ``implicit`` and ``operation="intersection"`` (the
+        liquid's tank): mirror the particles near its walls across them (ghost particles,
+        :mod:`filters.surface.walls`) and intersect the field with the box grown by one
+        spacing (:data:`filters.surface.walls.WALL_MARGIN_R` radii) instead: the surface goes
+        on through the walls, and :class:`pipeline.liquid.ClipBox` cuts it exactly at them
+        (:func:`surface_stages` adds it), so that it meets the walls, their edges and corners
+        without a gap.
     """
 
     def __init__(self, radius: float = SURFACE_DEFAULTS["radius"], cell_size: float | None = None,
@@ -164,7 +185,7 @@ class MetaballSplat(Algorithm):
                  block_size: int = 8, brick_blocks: int = 4,
                  max_bytes: int = DEFAULT_MAX_BYTES, implicit: Shape | None = None,
                  operation: str = "intersection", anisotropic: bool = False,
-                 anisotropy: dict | None = None):
+                 anisotropy: dict | None = None, mirror_walls: bool = False):
         self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
         self.cell_size = (self.radius / 2 if cell_size is None else
                           check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
@@ -186,6 +207,7 @@ class MetaballSplat(Algorithm):
                             f"{type(implicit).__name__}")
         self.implicit = implicit
         self.operation = check_choice("operation", operation, OPERATIONS)
+        self.mirror_walls = check_bool("mirror_walls", mirror_walls)
         if anisotropy is not None and not isinstance(anisotropy, dict):
             raise TypeError(f"anisotropy must be a dict of options, got {anisotropy!r}")
         self.anisotropy = dict(anisotropy or {})
@@ -201,9 +223,30 @@ class MetaballSplat(Algorithm):
         options = dict(kernel=self.kernel, support_r=self.support_r, iso=self.iso,
                        block_size=self.block_size, blobbiness=self.blobbiness,
                        max_bytes=self.max_bytes)
+        if self.walls is not None:
+            # the liquid's tank: ghosts mirrored across its walls
+            options["walls"] = self.walls
         if self.anisotropic:
             options.update(self.anisotropy)
         return options
+
+    @property
+    def walls(self) -> Box | None:
+        """The tank whose walls the particles are mirrored across, or None."""
+        if self.mirror_walls and isinstance(self.implicit, Box) \
+                and self.operation == "intersection":
+            return self.implicit
+        return None
+
+    def _shape(self, radius):
+        """The shape combined with the field: the tank grown by WALL_MARGIN_R radii with
+        ghosts, else ``implicit``."""
+        if self.walls is None:
+            return self.implicit
+        margin = WALL_MARGIN_R * float(np.max(radius)) if np.size(radius) else 0.0
+        lo, hi = grow_walls((np.asarray(self.walls.lower, float),
+                             np.asarray(self.walls.upper, float)), margin)
+        return Box(tuple(lo), tuple(hi))
 
     def _splat(self, sparse: bool):
         """The splatting function for the chosen grid and kernel shape."""
@@ -218,7 +261,7 @@ class MetaballSplat(Algorithm):
         if self.sparse:
             grid = self._splat(True)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
-                grid = combine_sparse(grid, self.implicit, self.operation,
+                grid = combine_sparse(grid, self._shape(radius), self.operation,
                                       max_bytes=self.max_bytes)
             out = vtkPartitionedDataSet.GetData(outInfo, 0)
             out.Initialize()
@@ -233,7 +276,7 @@ class MetaballSplat(Algorithm):
         else:
             field = self._splat(False)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
-                field = combine_dense(field, self.implicit, self.operation)
+                field = combine_dense(field, self._shape(radius), self.operation)
             out = vtkImageData.GetData(outInfo, 0)
             image, _keep = image_of(np.ascontiguousarray(field.values), field.index_origin,
                                     deep=True)
@@ -318,11 +361,19 @@ class FeatureSmoothing(ParticleStage):
         Point array of the particles holding their radii (m).
     reach_r : float
         Neighbourhood radius over ``r``, in [1, 20].
+    walls : filters.geometry.Box, optional
+        The tank a surface was cut at (:class:`pipeline.liquid.ClipBox`): vertices on a wall
+        move only in it (on an edge only along it), over their neighbours off the flat faces on
+        the walls, which follow them.
     """
 
     def __init__(self, iterations: int = SURFACE_DEFAULTS["feature_smoothing"], *,
                  radius: float = SURFACE_DEFAULTS["radius"], radius_array: str | None = None,
-                 reach_r: float = 8.0):
+                 reach_r: float = 8.0, walls: Box | None = None):
+        if walls is not None and not isinstance(walls, Box):
+            raise TypeError(f"walls must be a filters.geometry.Box or None, got "
+                            f"{type(walls).__name__}")
+        self.walls = walls
         self.iterations = check_int("iterations", iterations, 0, 10000)
         self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
         self.radius_array = _check_optional_str("radius_array", radius_array)
@@ -342,9 +393,12 @@ class FeatureSmoothing(ParticleStage):
         r = float(radius.max()) if radius.size else 1.0
         pts = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
         tris = numpy_support.vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()).reshape(-1, 3)
-        smoothed = smooth_surface(pts.astype(np.float64), tris,
+        free, faces = None, np.zeros(len(tris), bool)
+        if self.walls is not None:
+            free, faces = wall_constraints(pts, tris, self.walls.lower, self.walls.upper)
+        smoothed = smooth_surface(pts.astype(np.float64), tris[~faces],
                                   np.ascontiguousarray(positions, np.float64), r,
-                                  iterations=self.iterations, reach_r=self.reach_r)
+                                  iterations=self.iterations, reach_r=self.reach_r, free=free)
         out.ShallowCopy(mesh_to_polydata(smoothed.astype(pts.dtype), tris))
         return 1
 
@@ -420,74 +474,6 @@ class InterpolateAttributes(ParticleStage):
         return 1
 
 
-class _MeshFilter(Algorithm):
-    """A vtkPolyData -> vtkPolyData stage wrapping a VTK filter; a mesh without triangles (or a
-    stage switched off) passes through."""
-
-    def __init__(self):
-        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
-                           outputType="vtkPolyData")
-
-    def _filter(self):  # pragma: no cover - abstract
-        """The configured VTK filter, or None to pass the mesh through."""
-        raise NotImplementedError
-
-    def RequestData(self, request, inInfo, outInfo):
-        inp = vtkPolyData.GetData(inInfo[0], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        f = self._filter() if inp.GetNumberOfPolys() else None
-        if f is None:
-            out.ShallowCopy(inp)
-            return 1
-        f.SetInputData(inp)
-        f.Update()
-        out.ShallowCopy(f.GetOutput())
-        return 1
-
-
-class Smooth(_MeshFilter):
-    """Windowed-sinc smoothing (Taubin, Zhang & Golub 1996) that keeps the enclosed volume.
-
-    Parameters
-    ----------
-    iterations : int
-        Filter degree (number of iterations), in [0, 1000]; 0 passes the mesh through.
-    pass_band : float
-        In (0, 2); lower smooths more. ``(100, 0.001)`` removes the particle-scale bumps of a
-        lattice-filled ball (area within 1 % of the sphere's) while moving its enclosed volume
-        by less than 0.1 %.
-    """
-
-    def __init__(self, iterations: int = 100, pass_band: float = 0.001):
-        self.iterations = check_int("iterations", iterations, 0, 1000)
-        self.pass_band = check_range("pass_band", pass_band, 0.0, 2.0, low_inclusive=False)
-        _MeshFilter.__init__(self)
-
-    def _filter(self):
-        if self.iterations == 0:
-            return None
-        f = vtkWindowedSincPolyDataFilter()
-        f.SetNumberOfIterations(self.iterations)
-        f.SetPassBand(self.pass_band)
-        f.NormalizeCoordinatesOn()
-        f.BoundarySmoothingOff()
-        f.FeatureEdgeSmoothingOff()
-        f.NonManifoldSmoothingOn()
-        return f
-
-
-class Normals(_MeshFilter):
-    """Point normals (vtkPolyDataNormals) without splitting sharp edges (stays watertight)."""
-
-    def _filter(self):
-        f = vtkPolyDataNormals()
-        f.SplittingOff()
-        f.ConsistencyOff()
-        f.AutoOrientNormalsOff()
-        f.ComputePointNormalsOn()
-        f.ComputeCellNormalsOff()
-        return f
-
 # --------------------------------------------------------------------------------------------
 # The chain
 # --------------------------------------------------------------------------------------------
@@ -500,16 +486,21 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
                    smooth_iterations: int = SURFACE_DEFAULTS["smooth_iterations"],
                    pass_band: float = SURFACE_DEFAULTS["pass_band"],
                    normals: bool = SURFACE_DEFAULTS["normals"],
-                   attributes=SURFACE_DEFAULTS["attributes"], support_r=None,
+                   attributes=SURFACE_DEFAULTS["attributes"],
+                   volume_correction: bool = SURFACE_DEFAULTS["volume_correction"],
+                   support_r=None,
                    blobbiness: float = 4.0, radius_array: str | None = None,
                    **splat_options) -> list:
     """The chain particles -> surface as a list of algorithms.
 
     ``flow.add("surface", *surface_stages(radius=0.01), input="particles")``. The defaults
-    (:data:`pipeline.surface_options.SURFACE_DEFAULTS`) are the liquid scenes' surface: anisotropic ``sph`` kernels, 25
-    sweeps of feature smoothing, 30 windowed-sinc iterations with pass band 0.01, normals,
-    ``velocity`` carried to the vertices (:func:`pipeline.surface_options.liquid_surface_options` adds a liquid's
-    radius and tank).
+    (:data:`pipeline.surface_options.SURFACE_DEFAULTS`) are the liquid scenes' surface:
+    anisotropic ``sph`` kernels, 25 sweeps of feature smoothing, 30 windowed-sinc iterations
+    with pass band 0.01, the volume correction, normals, ``velocity`` carried to the vertices
+    (:func:`pipeline.surface_options.liquid_surface_options` adds a liquid's radius and tank).
+    With ``mirror_walls`` and a :class:`filters.geometry.Box` intersected with the field, a
+    :class:`pipeline.liquid.ClipBox` follows the contour and the smoothing keeps the cut faces
+    on the walls.
 
     Parameters
     ----------
@@ -532,11 +523,18 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     attributes : sequence of str
         Particle arrays carried to the vertices (:class:`InterpolateAttributes`; empty: no such
         stage).
+    volume_correction : bool
+        Append a :class:`pipeline.liquid.VolumeCorrection` stage after the smoothing: every
+        closed piece of the surface encloses the volume of its particles, ``(2 r)^3`` each (a
+        liquid's particles). With an ``implicit`` shape intersected with the field it is the
+        container the vertices stay in (the complement of a subtracted one); not with a union
+        (the surface then encloses the shape's volume too, and no correction is made).
     support_r, blobbiness, radius_array
         As in :class:`MetaballSplat` (shared with the stages that read the particles).
     **splat_options
         Further keyword arguments of :class:`MetaballSplat` (``iso``, ``sparse``, ``block_size``,
-        ``brick_blocks``, ``max_bytes``, ``implicit``, ``operation``, ``anisotropy``).
+        ``brick_blocks``, ``max_bytes``, ``implicit``, ``operation``, ``anisotropy``,
+        ``mirror_walls``).
 
     Returns
     -------
@@ -548,18 +546,28 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     feature_smoothing = check_int("feature_smoothing", feature_smoothing, 0, 10000)
     smooth_iterations = check_int("smooth_iterations", smooth_iterations, 0, 1000)
     normals = check_bool("normals", normals)
+    walls = splat.walls
     stages = [splat, MarchingCubes()]
+    if walls is not None:
+        stages.append(ClipBox(walls, tolerance=0.01 * splat.cell_size))
     if feature_smoothing:
         stages.append(FeatureSmoothing(feature_smoothing, radius=radius,
-                                       radius_array=radius_array))
+                                       radius_array=radius_array, walls=walls))
     interpolate = InterpolateAttributes(attributes, radius=radius, cell_size=splat.cell_size,
                                         kernel=kernel, support_r=support_r,
                                         blobbiness=blobbiness, radius_array=radius_array)
     if interpolate.attributes:
         stages.append(interpolate)
-    smooth = Smooth(smooth_iterations, pass_band)
+    smooth = Smooth(smooth_iterations, pass_band, walls=walls)
     if smooth_iterations:
         stages.append(smooth)
+    volume_correction = check_bool("volume_correction", volume_correction)
+    if volume_correction and (splat.implicit is None or splat.operation != "union"):
+        container = splat.implicit
+        if container is not None and splat.operation == "difference":
+            container = ~container
+        stages.append(VolumeCorrection(radius=radius, radius_array=radius_array,
+                                       container=container, cell_size=splat.cell_size))
     if normals:
         stages.append(Normals())
     return stages
