@@ -2,7 +2,7 @@
 
 Run on a quiet machine, one benchmark at a time::
 
-    env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sph.py            # everything (~1 hour)
+    env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sph.py            # everything (~2 hours)
     env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sph.py persim_10k_blobflow_dfsph ...
 
 The figure users live by is **wall seconds per simulated second** at a stated density error, so
@@ -41,10 +41,6 @@ that is what the ``persim_*`` parts measure, on one scene for all four solvers:
   process, and SPlisHSPlasH's settings are **read back from the loaded simulation** (a key the
   loader ignores would otherwise go unnoticed).  Timing starts after the scene is built and,
   for blobflow, after Numba compiled its kernels on a small copy of the scene.
-* The WCSPH runs at 200k particles simulate 0.1 s instead of 0.5 s (each would take about
-  40 minutes); a WCSPH step costs about the same all along a run (its step is fixed by the speed
-  of sound), and the first 0.1 s, with no list rebuilds at rest, favours it if anything.
-
 Also measured (unchanged from earlier versions of this benchmark): fixed-radius neighbour search
 against ``scipy.spatial.cKDTree`` (``nsearch``), and peak memory per fluid particle of a
 1M-particle dam break for each solver (``memory_*``).
@@ -73,7 +69,6 @@ MAX_ERROR = 0.001  # mean density error of the DFSPH solves (fraction)
 MAX_ERROR_V = 0.01  # mean divergence error per step (fraction)
 SIZES = {"10k": 10_000, "50k": 50_000, "200k": 200_000}
 T_END = 0.5
-T_END_WCSPH_200K = 0.1
 
 
 # =============================================================================================
@@ -167,7 +162,7 @@ def part_persim_blobflow(size, solver):
     import numpy as np
 
     n_target = SIZES[size]
-    t_end = T_END_WCSPH_200K if (solver == "wcsph" and size == "200k") else T_END
+    t_end = T_END
     warm = blobflow_dam_break(2000, solver)  # compile every kernel outside the timing
     warm.step(warm.max_step())
     warm.frame()
@@ -214,7 +209,7 @@ def part_persim_splishsplash(size, solver):
 
     n_target = SIZES[size]
     wcsph = solver == "wcsph"
-    t_end = T_END_WCSPH_200K if (wcsph and size == "200k") else T_END
+    t_end = T_END
     dt = None
     if wcsph:  # blobflow's WCSPH step for this column, fixed
         sim0 = blobflow_dam_break(n_target, "wcsph")

@@ -1,5 +1,10 @@
-"""Mesh stages of the surface chain: windowed-sinc smoothing and point normals, on any
-vtkPolyData (:mod:`pipeline.surface` builds the chain)."""
+"""Mesh stages wrapping VTK filters: windowed-sinc smoothing and point normals.
+
+Each is a vtkPolyData -> vtkPolyData :class:`pipeline.algorithm.Algorithm`; a mesh without
+triangles (or a stage switched off) passes through. :mod:`pipeline.surface` puts them at the end
+of the surface chain and exports them; with the walls of a tank the surface was cut at
+(:class:`pipeline.liquid.ClipBox`), :class:`Smooth` keeps the cut faces on the walls.
+"""
 
 from __future__ import annotations
 
@@ -14,10 +19,10 @@ from filters.validation import check_int, check_range
 
 from .algorithm import Algorithm
 
-__all__ = ["Smooth", "Normals"]
+__all__ = ["MeshFilter", "Smooth", "Normals"]
 
 
-class _MeshFilter(Algorithm):
+class MeshFilter(Algorithm):
     """A vtkPolyData -> vtkPolyData stage wrapping a VTK filter; a mesh without triangles (or a
     stage switched off) passes through."""
 
@@ -42,7 +47,7 @@ class _MeshFilter(Algorithm):
         return 1
 
 
-class Smooth(_MeshFilter):
+class Smooth(MeshFilter):
     """Windowed-sinc smoothing (Taubin, Zhang & Golub 1996) that keeps the enclosed volume.
 
     Parameters
@@ -67,7 +72,7 @@ class Smooth(_MeshFilter):
             raise TypeError(f"walls must be a filters.geometry.Box or None, got "
                             f"{type(walls).__name__}")
         self.walls = walls
-        _MeshFilter.__init__(self)
+        MeshFilter.__init__(self)
 
     def _filter(self):
         if self.iterations == 0:
@@ -84,7 +89,7 @@ class Smooth(_MeshFilter):
     def RequestData(self, request, inInfo, outInfo):
         inp = vtkPolyData.GetData(inInfo[0], 0)
         if self.walls is None or self.iterations == 0 or inp.GetNumberOfPolys() == 0:
-            return _MeshFilter.RequestData(self, request, inInfo, outInfo)
+            return MeshFilter.RequestData(self, request, inInfo, outInfo)
         pts = numpy_support.vtk_to_numpy(inp.GetPoints().GetData())
         tris = numpy_support.vtk_to_numpy(inp.GetPolys().GetConnectivityArray()).reshape(-1, 3)
         _, faces = wall_constraints(pts, tris, self.walls.lower, self.walls.upper)
@@ -112,7 +117,7 @@ def _cells(triangles):
     return cells
 
 
-class Normals(_MeshFilter):
+class Normals(MeshFilter):
     """Point normals (vtkPolyDataNormals) without splitting sharp edges (stays watertight)."""
 
     def _filter(self):

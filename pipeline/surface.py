@@ -23,7 +23,7 @@ them). Stages that need the particles read them on their second input port
 ``InterpolateAttributes`` (mesh, particles)
     Particle arrays (``velocity``, ...) carried to the vertices with the splatting kernel
     (Shepard weights, :mod:`filters.surface.attributes`).
-``Smooth``
+``Smooth`` (:mod:`pipeline.mesh_stages`)
     vtkWindowedSincPolyDataFilter (Taubin, Zhang & Golub 1996), whose low-pass filter does not
     shrink the surface the way Laplacian smoothing does (:mod:`pipeline.mesh_stages`).
 ``VolumeCorrection`` (mesh, particles)
@@ -32,7 +32,8 @@ them). Stages that need the particles read them on their second input port
 ``Normals``
     vtkPolyDataNormals without splitting (the mesh stays watertight).
 
-:func:`surface_stages` builds the chain from one set of options whose defaults,
+:func:`surface_stages` builds the chain, and :func:`reconstruct` runs it on one point cloud, from
+one set of options whose defaults,
 :data:`pipeline.surface_options.SURFACE_DEFAULTS`, are the liquid scenes' surface and
 ``blobflow surface``'s (:mod:`pipeline.surface_options`).
 """
@@ -43,7 +44,8 @@ import math
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkImageData, vtkPartitionedDataSet,
+from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageData,
+                                           vtkPartitionedDataSet,
                                            vtkPointSet, vtkPolyData)
 
 from filters.geometry import Box, Shape
@@ -60,7 +62,7 @@ from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_s
 from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
-from .algorithm import Algorithm, ParticleStage
+from .algorithm import Algorithm, ParticleStage, run_chain
 from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
 from .liquid import ClipBox, VolumeCorrection
 from .mesh_stages import Normals, Smooth
@@ -76,6 +78,8 @@ __all__ = [
     "ClipBox",
     "VolumeCorrection",
     "surface_stages",
+    "surface_option_names",
+    "reconstruct",
 ]
 
 
@@ -572,4 +576,96 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
         stages.append(Normals())
     return stages
 
+
+def surface_option_names() -> tuple[str, ...]:
+    """Names of the keyword options :func:`surface_stages` and :func:`reconstruct` take."""
+    import inspect
+
+    chain = [p.name for p in inspect.signature(surface_stages).parameters.values()
+             if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    splat = [p.name for p in inspect.signature(MetaballSplat.__init__).parameters.values()
+             if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name not in chain]
+    return tuple(chain + splat)
+
+
+def _point_cloud(points_or_dataset):
+    """A vtkPointSet of the particles: a dataset as given, or points (N, 3) without cells."""
+    import pyvista as pv
+
+    from filters.validation import check_points
+
+    if isinstance(points_or_dataset, vtkPointSet):
+        return points_or_dataset
+    if isinstance(points_or_dataset, vtkDataObject):
+        if not isinstance(points_or_dataset, vtkDataSet):
+            raise TypeError(f"points_or_dataset must be points (N, 3) or a dataset, got a "
+                            f"{points_or_dataset.GetClassName()}")
+        data = pv.wrap(points_or_dataset)  # image data, rectilinear grids: their points
+        cloud = pv.PolyData(np.asarray(data.points, dtype=np.float64))
+        for name in data.point_data.keys():
+            cloud.point_data[name] = data.point_data[name]
+        return cloud
+    try:
+        points = check_points("points_or_dataset", points_or_dataset)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{exc} (or pass a PyVista/VTK point dataset)") from None
+    return pv.PolyData(np.ascontiguousarray(points, dtype=np.float64))
+
+
+def reconstruct(points_or_dataset, radius: float, **options):
+    """The surface of one point cloud: splat, contour, smooth (the :func:`surface_stages` chain).
+
+    One call for what a :class:`pipeline.Flow` does at every frame: the same stages with the
+    same options give the same surface, bit for bit. The accessor
+    ``cloud.blobflow.surface(radius=...)`` of any PyVista dataset (:mod:`pipeline.accessor`)
+    calls it.
+
+    Parameters
+    ----------
+    points_or_dataset : (N, 3) array_like or vtkPointSet / pyvista.DataSet
+        Particle positions (m), or a dataset whose points are the particles; its point arrays
+        named in ``attributes`` (default ``velocity``) are carried to the surface's vertices and
+        ``radius_array`` may name per-particle radii.
+    radius : float
+        Particle radius (m), > 0.
+    **options
+        Options of :func:`surface_stages` (``cell_size``, ``kernel``, ``anisotropic``,
+        ``feature_smoothing``, ``smooth_iterations``, ``pass_band``, ``normals``,
+        ``attributes``, ``support_r``, ``blobbiness``, ``radius_array``) and of
+        :class:`MetaballSplat` (``iso``, ``sparse``, ``max_bytes``, ``implicit``,
+        ``operation``, ``anisotropy``, ...); defaults
+        :data:`pipeline.surface_options.SURFACE_DEFAULTS`.
+
+    Returns
+    -------
+    pyvista.PolyData
+        The triangle surface (m), with point normals and the carried arrays unless switched
+        off; empty when there are no particles.
+
+    Raises
+    ------
+    TypeError
+        For an unknown option (the message lists the valid ones) or an input that is neither
+        points nor a point dataset.
+    ValueError
+        For an option out of its range (named, with the range), before any work starts.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> surface = reconstruct(np.random.default_rng(0).uniform(0, 0.05, (500, 3)),
+    ...                       radius=0.005)                                  # doctest: +SKIP
+    """
+    import pyvista as pv
+
+    names = surface_option_names()
+    unknown = sorted(set(options) - set(names))
+    if unknown:
+        raise TypeError(f"reconstruct() has no option {unknown[0]!r}; options: "
+                        f"{', '.join(n for n in names if n != 'radius')}")
+    if "radius" in options:
+        raise TypeError("reconstruct() got radius twice")
+    stages = surface_stages(radius, **options)  # validates every option before any work
+    cloud = _point_cloud(points_or_dataset)
+    return pv.wrap(run_chain(stages, cloud, what="the surface reconstruction"))
 

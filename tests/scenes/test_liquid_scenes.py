@@ -63,3 +63,21 @@ def test_drop_default_scene_keeps_its_water(tmp_path, capsys):
     out, p = _run(tmp_path, capsys, "drop", 0.35)  # the drop hits the pool at ~0.17 s
     _check_liquid(out, (p["tank_length"], p["tank_width"], p["tank_height"]),
                   p["max_density_error"])
+
+
+@pytest.mark.parametrize("scene_name", ["dam_break", "drop"])
+@pytest.mark.parametrize("solver", ["dfsph", "wcsph"])
+def test_instability_advice_names_only_parameters_the_scene_accepts(scene_name, solver):
+    import inspect
+    import re
+
+    from filters.sph import SPHLiquid
+    from pipeline.scene import load_scene
+
+    scene = load_scene(scene_name)
+    flow = scene.build(solver=solver, spacing=0.02, surface=False)
+    hint = flow.source.simulation.instability_hint
+    knobs = set(inspect.signature(SPHLiquid).parameters)
+    named = {w for w in re.findall(r"[a-z_]+", hint) if w in knobs}
+    assert named, hint
+    assert named <= set(scene.parameters), named - set(scene.parameters)
