@@ -67,17 +67,17 @@ def test_drops_keep_their_volume(radius):
     assert abs(raw) < 0.15
 
 
-@pytest.mark.parametrize("spacing", [0.01, 0.005])
+@pytest.mark.parametrize("spacing", [0.004, 0.002])
 def test_settled_pool_keeps_its_water(spacing):
-    """A pool settled by the liquid scenes' solver (DFSPH) in a closed tank, at a spacing and
-    at half of it: its surface, cut by the tank's walls, encloses the particles' volume within
-    2 %, meets the floor and the walls, and its top stays flat."""
-    length, depth = 0.08, 0.04
+    """A pool settled by the liquid scenes' solver (DFSPH) in a closed tank, at the dam break's
+    default spacing (4 mm) and at half of it: its surface, cut by the tank's walls, encloses
+    the particles' volume within 2 %, meets the floor and the walls, and its top stays flat."""
+    length, depth, height = 0.032, 0.016, 0.024  # 8 x 8 x 4 particles at 4 mm
     sim = dam_break_liquid(column_width=length, column_height=depth, tank_length=length,
-                           depth=length, tank_height=0.06, spacing=spacing, viscosity=0.05)
+                           depth=length, tank_height=height, spacing=spacing, viscosity=0.05)
     sim.advance_to(0.2)
     x = np.array(sim.state.positions)
-    tank = ((0.0, 0.0, 0.0), (length, length, 0.06))
+    tank = ((0.0, 0.0, 0.0), (length, length, height))
     pts, tris = _surface(x, spacing, tank)
     st = mesh_stats(pts, tris)
     assert st.closed and st.components == 1
