@@ -17,10 +17,10 @@ them). Stages that need the particles read them on their second input port
 ``ClipBox`` (with a tank whose walls the particles are mirrored across)
     The surface cut exactly at the tank's walls and closed with flat faces
     (:mod:`pipeline.liquid`); the smoothing stages keep those faces on the walls.
-``FeatureSmoothing`` (mesh, particles)
+``FeatureSmoothing`` (mesh, particles; :mod:`pipeline.particle_stages`)
     Feature-weighted Laplacian smoothing (Löschner et al. 2023,
     :mod:`filters.surface.smoothing`): flat liquid smoothed fully, droplets and sheets kept.
-``InterpolateAttributes`` (mesh, particles)
+``InterpolateAttributes`` (mesh, particles; :mod:`pipeline.particle_stages`)
     Particle arrays (``velocity``, ...) carried to the vertices with the splatting kernel
     (Shepard weights, :mod:`filters.surface.attributes`).
 ``Smooth`` (:mod:`pipeline.mesh_stages`)
@@ -43,7 +43,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageData,
                                            vtkPartitionedDataSet,
                                            vtkPointSet, vtkPolyData)
@@ -51,21 +50,20 @@ from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageDa
 from filters.geometry import Box, Shape
 from filters.kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from filters.surface.anisotropy import check_anisotropy
-from filters.surface.attributes import interpolate_attributes
-from filters.surface.clip import wall_constraints
 from filters.surface.csg import OPERATIONS, combine_dense, combine_sparse
 from filters.surface.ellipsoids import ANISOTROPIC_KERNELS
 from filters.surface.grid import DEFAULT_MAX_BYTES
-from filters.surface.smoothing import smooth_surface
 from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
                                    splat_sparse_anisotropic)
 from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
-from .algorithm import Algorithm, ParticleStage, run_chain
+from .algorithm import Algorithm, run_chain
 from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
 from .liquid import ClipBox, VolumeCorrection
 from .mesh_stages import Normals, Smooth
+from .particle_stages import (FeatureSmoothing, InterpolateAttributes, check_optional_range,
+                              check_optional_str, particles_from, radii_from)
 from .surface_options import SURFACE_DEFAULTS
 
 __all__ = [
@@ -81,53 +79,6 @@ __all__ = [
     "surface_option_names",
     "reconstruct",
 ]
-
-
-# --------------------------------------------------------------------------------------------
-# Checks shared by the stages
-# --------------------------------------------------------------------------------------------
-
-
-def _check_optional_str(name, value):
-    if value is not None and not (isinstance(value, str) and value):
-        raise TypeError(f"{name} must be a point array name or None, got {value!r}")
-    return value
-
-
-def _check_names(name, values):
-    if isinstance(values, str):
-        raise TypeError(f"{name} must be a sequence of point array names, got the string "
-                        f"{values!r}")
-    try:
-        values = tuple(values)
-    except TypeError:
-        raise TypeError(f"{name} must be a sequence of point array names, got {values!r}") from None
-    for v in values:
-        if not (isinstance(v, str) and v):
-            raise TypeError(f"{name} must hold point array names, got {v!r}")
-    return values
-
-
-def _check_optional_range(name, value, low, high, low_inclusive=True):
-    return None if value is None else check_range(name, value, low, high,
-                                                  low_inclusive=low_inclusive)
-
-
-def _particles_from(inp):
-    n = inp.GetNumberOfPoints()
-    if n == 0:
-        return np.zeros((0, 3))
-    return numpy_support.vtk_to_numpy(inp.GetPoints().GetData()).astype(np.float64)
-
-
-def _radii_from(inp, positions, radius, radius_array):
-    """The particle radii (m): ``radius`` or, when there are particles, the ``radius_array``."""
-    if radius_array and positions.shape[0]:
-        arr = inp.GetPointData().GetArray(radius_array)
-        if arr is None:
-            raise ValueError(f"radius_array {radius_array!r} is not a point array of the input")
-        return numpy_support.vtk_to_numpy(arr).astype(np.float64).reshape(-1)
-    return radius
 
 
 # --------------------------------------------------------------------------------------------
@@ -198,10 +149,10 @@ class MetaballSplat(Algorithm):
         if self.anisotropic and kernel not in ANISOTROPIC_KERNELS:
             raise ValueError(f"kernel must be one of {', '.join(map(repr, ANISOTROPIC_KERNELS))} "
                              f"when anisotropic=True, got {kernel!r}")
-        self.support_r = _check_optional_range("support_r", support_r, 0.0, 1e3, False)
-        self.iso = _check_optional_range("iso", iso, 0.0, math.inf)
+        self.support_r = check_optional_range("support_r", support_r, 0.0, 1e3, False)
+        self.iso = check_optional_range("iso", iso, 0.0, math.inf)
         self.blobbiness = check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
-        self.radius_array = _check_optional_str("radius_array", radius_array)
+        self.radius_array = check_optional_str("radius_array", radius_array)
         self.sparse = check_bool("sparse", sparse)
         self.block_size = check_int("block_size", block_size, 4, 64)
         self.brick_blocks = check_int("brick_blocks", brick_blocks, 1, 64)
@@ -260,8 +211,8 @@ class MetaballSplat(Algorithm):
 
     def RequestData(self, request, inInfo, outInfo):
         inp = vtkPointSet.GetData(inInfo[0], 0)
-        positions = _particles_from(inp)
-        radius = _radii_from(inp, positions, self.radius, self.radius_array)
+        positions = particles_from(inp)
+        radius = radii_from(inp, positions, self.radius, self.radius_array)
         if self.sparse:
             grid = self._splat(True)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
@@ -345,137 +296,6 @@ class MarchingCubes(Algorithm):
             fe.Update()
             pieces.add(fe, index_origin, index_origin + np.array(im.GetDimensions()) - 1)
         return pieces.mesh(1.0 if cell is None else cell)
-
-
-class FeatureSmoothing(ParticleStage):
-    """Feature-weighted Laplacian smoothing of a liquid surface (Löschner et al. 2023).
-
-    Input port 0: the triangle mesh; port 1: the particles (see
-    :func:`filters.surface.smoothing.smooth_surface`): flat liquid is smoothed fully, sheets
-    and droplets of a few particles are left alone.
-
-    Parameters
-    ----------
-    iterations : int
-        Jacobi sweeps, in [0, 10000]; 0 passes the mesh through.
-    radius : float
-        Particle radius ``r`` (m), > 0, where the particles have no ``radius_array``; with
-        per-particle radii the largest sets the spacing the fullness is measured against.
-    radius_array : str, optional
-        Point array of the particles holding their radii (m).
-    reach_r : float
-        Neighbourhood radius over ``r``, in [1, 20].
-    walls : filters.geometry.Box, optional
-        The tank a surface was cut at (:class:`pipeline.liquid.ClipBox`): vertices on a wall
-        move only in it (on an edge only along it), over their neighbours off the flat faces on
-        the walls, which follow them.
-    """
-
-    def __init__(self, iterations: int = SURFACE_DEFAULTS["feature_smoothing"], *,
-                 radius: float = SURFACE_DEFAULTS["radius"], radius_array: str | None = None,
-                 reach_r: float = 8.0, walls: Box | None = None):
-        if walls is not None and not isinstance(walls, Box):
-            raise TypeError(f"walls must be a filters.geometry.Box or None, got "
-                            f"{type(walls).__name__}")
-        self.walls = walls
-        self.iterations = check_int("iterations", iterations, 0, 10000)
-        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-        self.radius_array = _check_optional_str("radius_array", radius_array)
-        self.reach_r = check_range("reach_r", reach_r, 1.0, 20.0)
-        ParticleStage.__init__(self)
-
-    def RequestData(self, request, inInfo, outInfo):
-        mesh = vtkPolyData.GetData(inInfo[0], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        out.ShallowCopy(mesh)
-        if not self.iterations or mesh.GetNumberOfPoints() == 0:
-            return 1
-        particles = vtkPointSet.GetData(inInfo[1], 0)
-        positions = _particles_from(particles)
-        radius = _radii_from(particles, positions, self.radius, self.radius_array)
-        radius = np.broadcast_to(np.asarray(radius, np.float64), (positions.shape[0],))
-        r = float(radius.max()) if radius.size else 1.0
-        pts = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
-        tris = numpy_support.vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()).reshape(-1, 3)
-        free, faces = None, np.zeros(len(tris), bool)
-        if self.walls is not None:
-            free, faces = wall_constraints(pts, tris, self.walls.lower, self.walls.upper)
-        smoothed = smooth_surface(pts.astype(np.float64), tris[~faces],
-                                  np.ascontiguousarray(positions, np.float64), r,
-                                  iterations=self.iterations, reach_r=self.reach_r, free=free)
-        out.ShallowCopy(mesh_to_polydata(smoothed.astype(pts.dtype), tris))
-        return 1
-
-
-class InterpolateAttributes(ParticleStage):
-    """Particle point arrays carried to the vertices of a surface (Shepard weights of the
-    splatting kernel, :func:`filters.surface.attributes.interpolate_attributes`).
-
-    Input port 0: the mesh; port 1: the particles. The splatting options must be those of the
-    :class:`MetaballSplat` that made the surface (:func:`surface_stages` passes them).
-
-    Parameters
-    ----------
-    attributes : sequence of str
-        Point arrays of the particles to interpolate (missing ones are ignored).
-    radius, cell_size, kernel, support_r, blobbiness, radius_array
-        As in :class:`MetaballSplat`.
-    """
-
-    def __init__(self, attributes=SURFACE_DEFAULTS["attributes"], *,
-                 radius: float = SURFACE_DEFAULTS["radius"], cell_size: float | None = None,
-                 kernel: str = SURFACE_DEFAULTS["kernel"], support_r=None,
-                 blobbiness: float = 4.0, radius_array: str | None = None):
-        self.attributes = _check_names("attributes", attributes)
-        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-        self.cell_size = (self.radius / 2 if cell_size is None else
-                          check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
-        self.kernel = check_choice("kernel", kernel, SPLAT_KERNELS)
-        self.support_r = _check_optional_range("support_r", support_r, 0.0, 1e3, False)
-        self.blobbiness = check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
-        self.radius_array = _check_optional_str("radius_array", radius_array)
-        ParticleStage.__init__(self)
-
-    def RequestData(self, request, inInfo, outInfo):
-        mesh = vtkPolyData.GetData(inInfo[0], 0)
-        particles = vtkPointSet.GetData(inInfo[1], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        out.ShallowCopy(mesh)
-        positions = _particles_from(particles)
-        if not positions.shape[0]:
-            return 1
-        names, values = [], []
-        for name in self.attributes:
-            arr = particles.GetPointData().GetArray(name)
-            if arr is not None:
-                names.append(name)
-                values.append(numpy_support.vtk_to_numpy(arr).astype(np.float64))
-        if not names:
-            return 1
-        radius = _radii_from(particles, positions, self.radius, self.radius_array)
-        radius = np.broadcast_to(np.asarray(radius, np.float64), (positions.shape[0],)).copy()
-        n = mesh.GetNumberOfPoints()
-        pd = out.GetPointData()
-        if n == 0:
-            result = [np.zeros((0,) + v.shape[1:], np.float64) for v in values]
-        else:
-            pts = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData()).astype(np.float64)
-            columns = [v.reshape(v.shape[0], -1) for v in values]
-            # all attributes in one pass: the same kernel weights serve every column
-            stacked = interpolate_attributes(
-                pts, positions, radius, np.concatenate(columns, axis=1),
-                cell_size=self.cell_size, kernel=self.kernel, support_r=self.support_r,
-                blobbiness=self.blobbiness)
-            result, start = [], 0
-            for v, c in zip(values, columns):
-                part = stacked[:, start:start + c.shape[1]]
-                result.append(np.ascontiguousarray(part).reshape((n,) + v.shape[1:]))
-                start += c.shape[1]
-        for name, array in zip(names, result):
-            vtk_array = numpy_support.numpy_to_vtk(np.ascontiguousarray(array), deep=True)
-            vtk_array.SetName(name)
-            pd.AddArray(vtk_array)
-        return 1
 
 
 # --------------------------------------------------------------------------------------------
