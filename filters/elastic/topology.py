@@ -36,6 +36,8 @@ __all__ = [
     "cloth_grid",
     "cloth_from_mesh",
     "jello_from_mesh",
+    "voxelize_mesh",
+    "Voxelization",
     "icosphere",
     "mesh_volume",
     "check_triangles",
@@ -51,14 +53,15 @@ BYTES_PER_NODE = 2048
 
 @dataclass(frozen=True)
 class Embedding:
-    """A surface mesh embedded in a particle lattice by trilinear weights.
+    """A surface mesh embedded in a particle lattice by interpolation weights.
 
     Attributes
     ----------
-    nodes : (M, 8) int64 array
-        Particles of the lattice cell that holds each mesh vertex.
-    weights : (M, 8) float64 array
-        Trilinear weights (sum to 1); vertex ``j`` is at ``sum_k weights[j, k] x[nodes[j, k]]``.
+    nodes : (M, K) int64 array
+        Particles of the lattice cell that holds each mesh vertex (``K = 8``: the corners of a
+        cube, trilinear weights; ``K = 4``: the corners of a tetrahedron, barycentric weights).
+    weights : (M, K) float64 array
+        Weights (sum to 1); vertex ``j`` is at ``sum_k weights[j, k] x[nodes[j, k]]``.
     triangles : (T, 3) int64 array
         The mesh's triangles.
     rest_points : (M, 3) float64 array
@@ -420,6 +423,97 @@ def _inside_parity(pts, tris, origin, h, dims, jitter):
     return parity
 
 
+@dataclass(frozen=True)
+class Voxelization:
+    """The lattice cells that hold the interior of a closed mesh (:func:`voxelize_mesh`).
+
+    Attributes
+    ----------
+    origin : (3,) float64
+        Position (m) of lattice node ``(0, 0, 0)``; cell ``(i, j, k)`` spans
+        ``origin + [i, i + 1] x [j, j + 1] x [k, k + 1] * spacing``.
+    spacing : float
+        Cell edge (m).
+    dims : (3,) int64
+        Cells of the lattice's box along x, y, z.
+    cells : (C, 3) int64
+        The active cells, in lexicographic order of ``(i, j, k)``.
+    vertex_cells : (M, 3) int64
+        The cell of every mesh vertex (all active).
+    triangles : (T, 3) int64
+        The mesh's triangles, oriented outward (positive volume).
+    volume : float
+        Volume (m^3) the mesh encloses.
+    """
+
+    origin: np.ndarray
+    spacing: float
+    dims: np.ndarray
+    cells: np.ndarray
+    vertex_cells: np.ndarray
+    triangles: np.ndarray
+    volume: float
+
+
+def voxelize_mesh(points, triangles, spacing):
+    """The cells of a cubic lattice whose centres lie inside a closed mesh, plus the cells of its
+    vertices (so that every vertex can be embedded in an active cell).
+
+    Inside is decided per cell centre by the parity of crossings of a vertical ray (jittered by
+    ~1e-7 spacing off the lattice so that it never hits an edge exactly).
+
+    Parameters
+    ----------
+    points : (M, 3) array_like
+        Mesh vertices (m).
+    triangles : (T, 3) int array_like
+        Triangles of a closed, consistently oriented 2-manifold.
+    spacing : float
+        Cell edge (m), > 0.
+
+    Returns
+    -------
+    Voxelization
+
+    Raises
+    ------
+    ValueError
+        If the mesh is not a closed consistently oriented manifold, encloses no volume, no cell
+        centre lies inside it, or the lattice would not fit in memory.
+    """
+    pts = check_points("points", points)
+    tris = check_triangles("triangles", triangles, pts.shape[0])
+    spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
+    _check_closed_manifold(tris, pts.shape[0])
+    volume = mesh_volume(pts, tris)
+    lo = pts.min(axis=0)
+    hi = pts.max(axis=0)
+    diag = float(np.linalg.norm(hi - lo))
+    if abs(volume) <= 1e-9 * diag ** 3 or diag == 0.0:
+        raise ValueError("the mesh encloses no volume (flat or degenerate): an elastic solid "
+                         "needs an interior")
+    if volume < 0.0:  # inward normals: flip so that the volume is positive
+        tris = tris[:, ::-1].copy()
+        volume = -volume
+    origin = lo - 0.25 * spacing
+    dims_f = np.maximum(np.ceil((hi + 0.25 * spacing - origin) / spacing), 1.0)
+    # the lattice's box bounds its nodes; the parity grid holds one byte per cell
+    check_memory(f"a lattice of {dims_f[0]:.0f} x {dims_f[1]:.0f} x {dims_f[2]:.0f} cells "
+                 f"at spacing = {spacing:g} m", float(np.prod(dims_f + 1.0)) * BYTES_PER_NODE,
+                 "increase spacing")
+    dims = dims_f.astype(np.int64)
+    jitter = np.array([1.234567e-7, 2.345678e-7]) * spacing
+    parity = _inside_parity(pts, tris, origin, spacing, dims, jitter)
+    active = parity.astype(bool)
+    if not active.any():
+        raise ValueError(f"no lattice cell centre lies inside the mesh at spacing = {spacing:g} m; "
+                         "use a smaller spacing")
+    cell = np.clip(np.floor((pts - origin) / spacing).astype(np.int64), 0, dims - 1)
+    active[cell[:, 0], cell[:, 1], cell[:, 2]] = True
+    cells = np.argwhere(active)  # (C, 3)
+    return Voxelization(origin, float(spacing), dims, cells, cell, tris, float(volume))
+
+
 def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
     """Voxelise a closed mesh into a spring lattice and embed the mesh in it.
 
@@ -452,33 +546,9 @@ def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
     tris = check_triangles("triangles", triangles, pts.shape[0])
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     density = check_range("density", density, 0.0, math.inf, low_inclusive=False)
-    _check_closed_manifold(tris, pts.shape[0])
-    volume = mesh_volume(pts, tris)
-    lo = pts.min(axis=0)
-    hi = pts.max(axis=0)
-    diag = float(np.linalg.norm(hi - lo))
-    if abs(volume) <= 1e-9 * diag ** 3 or diag == 0.0:
-        raise ValueError("the mesh encloses no volume (flat or degenerate): a jello needs an "
-                         "interior")
-    if volume < 0.0:  # inward normals: flip so that the volume is positive
-        tris = tris[:, ::-1].copy()
-        volume = -volume
-    origin = lo - 0.25 * spacing
-    dims_f = np.maximum(np.ceil((hi + 0.25 * spacing - origin) / spacing), 1.0)
-    # the lattice's box bounds its nodes; the parity grid holds one byte per cell
-    check_memory(f"a jello lattice of {dims_f[0]:.0f} x {dims_f[1]:.0f} x {dims_f[2]:.0f} cells "
-                 f"at spacing = {spacing:g} m", float(np.prod(dims_f + 1.0)) * BYTES_PER_NODE,
-                 "increase spacing")
-    dims = dims_f.astype(np.int64)
-    jitter = np.array([1.234567e-7, 2.345678e-7]) * spacing
-    parity = _inside_parity(pts, tris, origin, spacing, dims, jitter)
-    active = parity.astype(bool)
-    if not active.any():
-        raise ValueError(f"no lattice cell centre lies inside the mesh at spacing = {spacing:g} m; "
-                         "use a smaller spacing")
-    cell = np.clip(np.floor((pts - origin) / spacing).astype(np.int64), 0, dims - 1)
-    active[cell[:, 0], cell[:, 1], cell[:, 2]] = True
-    cells = np.argwhere(active)  # (C, 3)
+    vox = voxelize_mesh(pts, tris, spacing)
+    tris, volume, origin, dims = vox.triangles, vox.volume, vox.origin, vox.dims
+    cells, cell = vox.cells, vox.vertex_cells
     corner_offsets = np.array([[i, j, k] for k in (0, 1) for j in (0, 1) for i in (0, 1)])
     corners = cells[:, None, :] + corner_offsets[None, :, :]  # (C, 8, 3)
     nd = dims + 1
