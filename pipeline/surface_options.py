@@ -51,6 +51,7 @@ SURFACE_PARAMETERS = {p.name: p for p in (
     Parameter("brick_blocks", 4, "blocks per brick edge"),
     Parameter("max_bytes", DEFAULT_MAX_BYTES, "grid memory budget (bytes)"),
     Parameter("operation", "intersection", "how the tank combines with the field"),
+    Parameter("contour", "flying_edges", "flying_edges or tetrahedra"),
 )}
 
 
