@@ -43,3 +43,20 @@ def test_paraview_reads_times_and_arrays(series, which):
     assert seen["times"] == [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
     assert [f["points"] for f in seen["frames"]] == [30] * 8
     assert {"velocity", "id"} <= set(seen["point_arrays"])
+
+
+def test_paraview_reads_the_tetrahedra_and_the_embedded_mesh_of_a_fem_jello(tmp_path):
+    from pipeline.scene import load_scene
+
+    flow = load_scene("jello_fem").build(spacing=0.06, radius=0.12)
+    flow.source.set_frames(10, frames=3)
+    paths = flow.run(tmp_path, progress=False)
+    tets = _probe(paths["tets"])
+    assert tets["reader"] == "PVDReader" and tets["times"] == [0.0, 0.1, 0.2]
+    n_tets = flow.source.simulation.model.mesh.tets.shape[0]
+    assert [f["cells"] for f in tets["frames"]] == [n_tets] * 3
+    assert "strain_energy_density" in tets["cell_arrays"]
+    assert {"velocity", "id"} <= set(tets["point_arrays"])
+    jello = _probe(paths["jello"])
+    assert jello["times"] == [0.0, 0.1, 0.2]
+    assert {"velocity", "id"} <= set(jello["point_arrays"])
