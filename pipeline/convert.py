@@ -70,7 +70,8 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
             raise ValueError(f"frame at t = {frame.time} has non-finite values in {name!r}")
     missing = {name for name, _ in spec.cell_arrays} - set(cell_data)
     if missing:
-        raise ValueError(f"frame is missing the cell arrays {sorted(missing)} its OutputSpec lists")
+        raise ValueError(f"frame is missing the cell arrays {sorted(missing)} its OutputSpec "
+                         f"lists")
 
 
 def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):

@@ -28,8 +28,9 @@ import numpy as np
 from ..linalg import ImplicitSystem
 from ..validation import check_finite_vector, check_points, check_range
 from .contact import Colliders, contact_penalty, penalty_friction
-from .fem_kernels import (assemble_blocks, element_energies, element_forces, element_hessians,
-                          element_matvec, gather_nodes, serial_sum)
+from .fem_kernels import (CHUNK, assemble_stiffness, color_chunks, csr_matvec, element_energies,
+                          element_forces, element_hessians, finish_system, gather_nodes,
+                          serial_sum)
 from .materials import MATERIALS, material_parameters
 
 __all__ = [
@@ -258,13 +259,11 @@ class FEMSystem(ImplicitSystem):
         self._inc_local = np.ascontiguousarray(order % 4)
         self._fe = np.empty((nt, 4, 3))
         self._energies = np.empty(nt)
-        self._ke = None
         self._pattern = None
         self._cache_x = None  # positions of the last elastic evaluation and its results
         self._cache_force = np.empty((n, 3))
         self._cache_energy = 0.0
-        self._damp_x = None  # positions of the frozen damping stiffness
-        self._damp_ke = None
+        self._damp_x = None  # positions of the frozen damping stiffness (in the pattern)
         if colliders is not None:
             edges = self.rest_positions[self.tets[:, 1:]] - self.rest_positions[self.tets[:, :1]]
             length = float(np.sqrt((edges ** 2).sum(axis=2)).mean())
@@ -320,21 +319,25 @@ class FEMSystem(ImplicitSystem):
         e3 = x[t[:, 3]] - x[t[:, 0]]
         return float(np.einsum("ij,ij->i", e1, np.cross(e2, e3)).sum() / 6.0)
 
-    def _hessians(self, x, out):
+    def _stiffness(self, x, data):
+        """Assemble the definite stiffness at ``x`` into ``data`` (the pattern's CSR data)."""
+        p = self._pattern
         x = np.ascontiguousarray(x, dtype=np.float64)
         with _threads(self.n_tets):
-            element_hessians(x, self.tets, self.grads, self.volumes, self.material_code,
-                             self.mu, self.lam, True, out)
-        return out
+            assemble_stiffness(x, self.tets, self.grads, self.volumes, self.material_code,
+                               self.mu, self.lam, True, p["color_ptr"], p["color_order"],
+                               p["block_offset"], p["row_stride"], data)
+        return data
 
-    def _damping_blocks(self, xdir):
-        """Definite element stiffness at ``xdir`` (frozen for the damping), cached."""
+    def _damping_stiffness(self, xdir):
+        """The definite stiffness at ``xdir`` (frozen for the damping), as CSR data, cached."""
+        if self._pattern is None:
+            self._build_pattern()
+        p = self._pattern
         if self._damp_x is None or not np.array_equal(self._damp_x, xdir):
-            if self._damp_ke is None:
-                self._damp_ke = np.empty((self.n_tets, 12, 12))
-            self._hessians(xdir, self._damp_ke)
+            self._stiffness(xdir, p["damping"])
             self._damp_x = np.array(xdir, dtype=np.float64, copy=True)
-        return self._damp_ke
+        return p["damping"]
 
     # -- contacts ----------------------------------------------------------------------------
     def _contacts(self, x):
@@ -382,13 +385,12 @@ class FEMSystem(ImplicitSystem):
         f = np.empty_like(v) if out is None else out
         f[...] = -self.mass_damping * self.masses[:, None] * v
         if self.stiffness_damping > 0.0:
-            ke = self._damping_blocks(xdir)
-            v = np.ascontiguousarray(v, dtype=np.float64)
-            ye = np.empty((self.n_tets, 4, 3))
-            kv = np.empty_like(v)
+            kd = self._damping_stiffness(xdir)
+            mat = self._pattern["matrix"]
+            kv = np.empty((self.n_points, 3))
             with _threads(self.n_tets):
-                element_matvec(ke, self.tets, v, ye)
-                gather_nodes(ye, self._inc_ptr, self._inc_element, self._inc_local, kv)
+                csr_matvec(mat.indptr, mat.indices, kd, np.ascontiguousarray(v, np.float64),
+                           kv)
             f -= self.stiffness_damping * kv
         return f
 
@@ -417,38 +419,43 @@ class FEMSystem(ImplicitSystem):
         return parts
 
     def _build_pattern(self):
+        """The block CSR pattern of the node adjacency, where every element block lands in it,
+        and the element colours of the race-free parallel assembly."""
         import scipy.sparse as sp
 
         n = self.n_points
         t = self.tets
-        rows = np.repeat(t, 4, axis=1).ravel()  # (T*16,): k-major, l-minor
+        rows = np.repeat(t, 4, axis=1).ravel()  # (T*16,): 16 t + 4 k + l
         cols = np.tile(t, (1, 4)).ravel()
-        pair = rows * n + cols
-        keys, slot_of = np.unique(pair, return_inverse=True)
+        keys, slot_of = np.unique(rows * n + cols, return_inverse=True)
         brow = keys // n
-        bcols = np.ascontiguousarray(keys % n)
+        bcols = keys % n
         bptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(np.bincount(brow, minlength=n), out=bptr[1:])
-        diag_slot = np.searchsorted(keys, np.arange(n) * (n + 1)).astype(np.int64)
-        entry_order = np.argsort(slot_of, kind="stable")  # by slot, then element
-        slot_ptr = np.zeros(keys.size + 1, dtype=np.int64)
-        np.cumsum(np.bincount(slot_of, minlength=keys.size), out=slot_ptr[1:])
         nb = np.diff(bptr)
+        # scalar CSR: row 3i + r holds, for every block s of block-row i, columns 3 bcols[s] + q
+        # at 9 bptr[i] + 3 r nb[i] + 3 (s - bptr[i]) + q
+        first = 9 * bptr[brow] + 3 * (np.arange(keys.size) - bptr[brow])  # entry (0, 0)
         indptr = np.zeros(3 * n + 1, dtype=np.int64)
         indptr[1:] = np.cumsum(np.repeat(3 * nb, 3))
         indices = np.empty(9 * keys.size, dtype=np.int64)
-        row_cols = np.repeat(3 * bcols, 3) + np.tile(np.arange(3), bcols.size)
-        seg = np.repeat(np.arange(n), 3 * nb)
-        within = np.arange(row_cols.size) - np.repeat(3 * bptr[:-1], 3 * nb)
         for r in range(3):
-            indices[9 * bptr[seg] + 3 * r * nb[seg] + within] = row_cols
+            for q in range(3):
+                indices[first + 3 * r * nb[brow] + q] = 3 * bcols + q
         index_dtype = np.int32 if 9 * keys.size < 2**31 else np.int64
         mat = sp.csr_matrix((np.zeros(9 * keys.size), indices.astype(index_dtype),
                              indptr.astype(index_dtype)), shape=(3 * n, 3 * n), copy=False)
         mat.has_sorted_indices = True
-        self._pattern = dict(bptr=bptr, bcols=bcols, diag_slot=diag_slot, slot_ptr=slot_ptr,
-                             slot_entry=np.ascontiguousarray(entry_order, dtype=np.int64),
-                             matrix=mat, diag=np.zeros((n, 3, 3)))
+        diag_slot = np.searchsorted(keys, np.arange(n) * (n + 1))
+        color_ptr, color_order = color_chunks(t, n, CHUNK)
+        self._pattern = dict(
+            matrix=mat, color_ptr=color_ptr, color_order=color_order,
+            block_offset=np.ascontiguousarray(first[slot_of].reshape(-1, 16)),
+            row_stride=np.ascontiguousarray(3 * nb[t]),
+            diag_offset=np.ascontiguousarray(first[diag_slot]),
+            node_stride=np.ascontiguousarray(3 * nb),
+            stiffness=np.zeros(9 * keys.size), damping=np.zeros(9 * keys.size),
+            diag=np.zeros((n, 3, 3)))
 
     def system_matrix(self, x, xdir, h):
         """Assemble ``H = M (1/h^2 + alpha/h) + K(x) + beta K(xdir)/h`` (+ contact blocks) in
@@ -470,13 +477,11 @@ class FEMSystem(ImplicitSystem):
         """
         if self._pattern is None:
             self._build_pattern()
-        if self._ke is None:
-            self._ke = np.empty((self.n_tets, 12, 12))
         p = self._pattern
         h = float(h)
-        ke = self._hessians(x, self._ke)
-        scale2 = self.stiffness_damping / h
-        ke2 = self._damping_blocks(xdir) if scale2 > 0.0 else self._ke[:0]
+        stiffness = self._stiffness(x, p["stiffness"])
+        scale = self.stiffness_damping / h
+        damping = self._damping_stiffness(xdir) if scale > 0.0 else stiffness
         diag = p["diag"]
         diag[...] = 0.0
         m = self.masses * (1.0 / (h * h) + self.mass_damping / h)
@@ -487,6 +492,6 @@ class FEMSystem(ImplicitSystem):
             diag += self._cb
         mat = p["matrix"]
         with _threads(self.n_tets):
-            assemble_blocks(ke, ke2, scale2, p["slot_ptr"], p["slot_entry"], p["bptr"],
-                            p["bcols"], p["diag_slot"], diag, self.pinned, mat.data)
+            finish_system(mat.indptr, mat.indices, stiffness, damping, scale, p["diag_offset"],
+                          p["node_stride"], diag, self.pinned, mat.data)
         return mat

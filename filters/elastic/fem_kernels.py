@@ -7,9 +7,10 @@ Sifakis & Barbič 2012, "FEM simulation of 3D deformable solids", SIGGRAPH cours
 ``W``, energy ``W Psi(F)``, nodal forces ``f_k = -W P(F) g_k`` and stiffness blocks
 ``K_kl[a, c] = W sum_{b, d} g_k[b] dP_ab/dF_cd g_l[d]``.
 
-Every kernel runs over chunks of elements in parallel and writes per element (or per node, or
-per matrix block, each gathered in a fixed order), so results do not depend on the number of
-threads.
+Every kernel runs over chunks of elements in parallel and writes per element, per node
+(gathered in a fixed order) or, for the stiffness matrix, per matrix block from one colour of
+element chunks at a time (chunks of one colour share no node), so results do not depend on the
+number of threads.
 """
 
 from __future__ import annotations
@@ -24,9 +25,11 @@ __all__ = [
     "element_forces",
     "element_hessians",
     "element_stiffness",
-    "element_matvec",
     "gather_nodes",
-    "assemble_blocks",
+    "color_chunks",
+    "assemble_stiffness",
+    "finish_system",
+    "csr_matvec",
     "serial_sum",
 ]
 
@@ -145,21 +148,6 @@ def element_hessians(x, tets, grads, vols, material, mu, lam, definite, out):
 
 
 @njit(parallel=True, cache=True)
-def element_matvec(blocks, tets, v, out):
-    """``out[t] = blocks[t] v[tets[t]]`` for element matrices ``blocks`` (T, 12, 12), per
-    element (T, 4, 3)."""
-    nt = tets.shape[0]
-    for t in prange(nt):
-        for r in range(12):
-            acc = 0.0
-            for l in range(4):
-                node = tets[t, l]
-                acc += (blocks[t, r, 3 * l] * v[node, 0] + blocks[t, r, 3 * l + 1] * v[node, 1]
-                        + blocks[t, r, 3 * l + 2] * v[node, 2])
-            out[t, r // 3, r % 3] = acc
-
-
-@njit(parallel=True, cache=True)
 def gather_nodes(per_element, inc_ptr, inc_element, inc_local, out):
     """``out[i] = sum`` of ``per_element[t, k]`` over the elements ``t`` holding node ``i`` as
     their ``k``-th, in the fixed order of the incidence lists (N, 3)."""
@@ -178,74 +166,148 @@ def gather_nodes(per_element, inc_ptr, inc_element, inc_local, out):
         out[i, 2] = a2
 
 
+@njit(cache=True)
+def color_chunks(tets, n_nodes, chunk):
+    """Greedy colouring of the chunks of ``chunk`` consecutive elements: two chunks of one
+    colour share no node.
+
+    Returns ``(ptr, order)``: the chunks of colour ``c`` are ``order[ptr[c]:ptr[c + 1]]``, in
+    increasing order.  Consecutive elements of a lattice mesh are neighbours, so a chunk is a
+    compact piece of the mesh and a handful of colours suffice.
+    """
+    nt = tets.shape[0]
+    nc = (nt + chunk - 1) // chunk
+    last = np.full(n_nodes, -1, np.int64)  # per node: the last chunk that holds it
+    # chunk -> nodes, node -> chunks (without repeats)
+    count = np.zeros(n_nodes + 1, np.int64)
+    for c in range(nc):
+        for t in range(c * chunk, min(nt, (c + 1) * chunk)):
+            for k in range(4):
+                node = tets[t, k]
+                if last[node] != c:
+                    last[node] = c
+                    count[node + 1] += 1
+    for i in range(n_nodes):
+        count[i + 1] += count[i]
+    fill = count[:-1].copy()
+    inc = np.empty(count[-1], np.int64)
+    last[:] = -1
+    for c in range(nc):
+        for t in range(c * chunk, min(nt, (c + 1) * chunk)):
+            for k in range(4):
+                node = tets[t, k]
+                if last[node] != c:
+                    last[node] = c
+                    inc[fill[node]] = c
+                    fill[node] += 1
+    color = np.full(nc, -1, np.int64)
+    stamp = np.full(nc + 1, -1, np.int64)  # stamp[k] == c: colour k taken by a neighbour of c
+    ncolors = 0
+    for c in range(nc):
+        for t in range(c * chunk, min(nt, (c + 1) * chunk)):
+            for k in range(4):
+                node = tets[t, k]
+                for e in range(count[node], count[node + 1]):
+                    other = color[inc[e]]
+                    if other >= 0:
+                        stamp[other] = c
+        k = 0
+        while stamp[k] == c:
+            k += 1
+        color[c] = k
+        ncolors = max(ncolors, k + 1)
+    ptr = np.zeros(ncolors + 1, np.int64)
+    for c in range(nc):
+        ptr[color[c] + 1] += 1
+    for k in range(ncolors):
+        ptr[k + 1] += ptr[k]
+    fill = ptr[:-1].copy()
+    order = np.empty(nc, np.int64)
+    for c in range(nc):
+        order[fill[color[c]]] = c
+        fill[color[c]] += 1
+    return ptr, order
+
+
 @njit(parallel=True, cache=True)
-def assemble_blocks(ke, ke2, scale2, slot_ptr, slot_entry, bptr, bcols, diag_slot, diag, pinned,
-                    data):
-    """Assemble ``sum_t K_t + scale2 sum_t K2_t + diag`` into a block CSR matrix's ``data``.
+def assemble_stiffness(x, tets, grads, vols, material, mu, lam, definite, color_ptr,
+                       color_order, block_offset, row_stride, data):
+    """Assemble the stiffness ``sum_t K_t`` (N/m) into a block CSR matrix's ``data`` (zeroed
+    here), element by element, one colour of chunks at a time (:func:`color_chunks`: chunks of
+    a colour share no node, so they add into distinct blocks in parallel; every entry sums its
+    elements in the same order whatever the number of threads).
 
     Parameters
     ----------
-    ke, ke2 : (T, 12, 12) float64
-        Element matrices (``ke2`` may have no rows when ``scale2`` is 0).
-    scale2 : float
-        Factor of ``ke2``.
-    slot_ptr, slot_entry : int64 arrays
-        For every block slot of the pattern, the element blocks ``16 t + 4 k + l`` it sums, in
-        a fixed order (CSR form).
-    bptr, bcols : int64 arrays
-        Block-row pointers (N + 1,) and block columns of the pattern.
-    diag_slot : (N,) int64
-        Slot of every diagonal block.
-    diag : (N, 3, 3) float64
-        Added to the diagonal blocks (mass, damping and contact terms).
-    pinned : (N,) bool
-        Rows and columns of pinned nodes become the identity.
-    data : float64 array
-        The scalar CSR data: row ``3 i + r`` holds, for every block ``k`` of block-row ``i``,
-        the columns ``3 bcols[k] + q``.
+    color_ptr, color_order : int64 arrays
+        The chunks of :data:`CHUNK` elements of every colour (:func:`color_chunks`).
+    block_offset : (T, 16) int64
+        Index in ``data`` of the entry ``(0, 0)`` of the block of nodes ``(k, l)`` of element
+        ``t`` (``16 t + 4 k + l``).
+    row_stride : (T, 4) int64
+        Distance in ``data`` between the scalar rows of node ``k``'s block row.
     """
-    n = bptr.shape[0] - 1
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        blk = np.empty((3, 3))
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            _assemble_row(ke, ke2, scale2, slot_ptr, slot_entry, bptr, bcols, diag_slot, diag,
-                          pinned, data, i, blk)
+    for i in prange(data.shape[0]):
+        data[i] = 0.0
+    nt = tets.shape[0]
+    for color in range(color_ptr.shape[0] - 1):
+        for e in prange(color_ptr[color], color_ptr[color + 1]):
+            chunk = color_order[e]
+            scratch = _scratch()
+            f = np.empty((3, 3))
+            tf = np.empty(6)
+            gv = np.empty((4, 3))
+            kh = np.empty((3, 3))
+            ke = np.empty((12, 12))
+            for t in range(chunk * CHUNK, min(nt, (chunk + 1) * CHUNK)):
+                _deformation(x, tets, grads, t, f)
+                element_stiffness(material, mu, lam, f, grads[t], vols[t], definite, ke,
+                                  scratch, tf, gv, kh)
+                for k in range(4):
+                    stride = row_stride[t, k]
+                    for l in range(4):
+                        base = block_offset[t, 4 * k + l]
+                        for r in range(3):
+                            for q in range(3):
+                                data[base + r * stride + q] += ke[3 * k + r, 3 * l + q]
 
 
-@njit(cache=True, inline="always")
-def _assemble_row(ke, ke2, scale2, slot_ptr, slot_entry, bptr, bcols, diag_slot, diag, pinned,
-                  data, i, blk):
-    """Block-row ``i`` of :func:`assemble_blocks` (``blk`` a (3, 3) scratch)."""
-    nb = bptr[i + 1] - bptr[i]
-    base = 9 * bptr[i]
-    for slot in range(bptr[i], bptr[i + 1]):
-        j = bcols[slot]
-        blk[:, :] = 0.0
-        if pinned[i] or pinned[j]:
-            if i == j:
-                for r in range(3):
-                    blk[r, r] = 1.0
-        else:
-            for e in range(slot_ptr[slot], slot_ptr[slot + 1]):
-                code = slot_entry[e]
-                t = code // 16
-                k = (code // 4) % 4
-                l = code % 4
-                for r in range(3):
-                    for q in range(3):
-                        blk[r, q] += ke[t, 3 * k + r, 3 * l + q]
-                if scale2 != 0.0:
-                    for r in range(3):
-                        for q in range(3):
-                            blk[r, q] += scale2 * ke2[t, 3 * k + r, 3 * l + q]
-            if slot == diag_slot[i]:
-                for r in range(3):
-                    for q in range(3):
-                        blk[r, q] += diag[i, r, q]
-        col = 3 * (slot - bptr[i])
+@njit(parallel=True, cache=True)
+def finish_system(indptr, indices, stiffness, damping, scale, diag_offset, row_stride, diag,
+                  pinned, data):
+    """``data = stiffness + scale * damping`` plus the 3x3 ``diag`` blocks on the diagonal, for
+    a CSR matrix of 3x3 blocks (rows ``3 i + r``); the rows and columns of pinned nodes become
+    those of the identity."""
+    for row in prange(indptr.shape[0] - 1):
+        i = row // 3
+        for p in range(indptr[row], indptr[row + 1]):
+            j = indices[p] // 3
+            if pinned[i] or pinned[j]:
+                data[p] = 1.0 if indices[p] == row else 0.0
+            elif scale != 0.0:
+                data[p] = stiffness[p] + scale * damping[p]
+            else:
+                data[p] = stiffness[p]
+    for i in prange(diag.shape[0]):
+        if pinned[i]:
+            continue
+        base = diag_offset[i]
+        stride = row_stride[i]
         for r in range(3):
             for q in range(3):
-                data[base + 3 * r * nb + col + q] = blk[r, q]
+                data[base + r * stride + q] += diag[i, r, q]
+
+
+@njit(parallel=True, cache=True)
+def csr_matvec(indptr, indices, data, v, out):
+    """``out = A v`` for a CSR matrix and vectors of shape (N, 3) (rows ``3 i + a``)."""
+    flat_v = v.reshape(-1)
+    flat_out = out.reshape(-1)
+    for r in prange(indptr.shape[0] - 1):
+        acc = 0.0
+        for p in range(indptr[r], indptr[r + 1]):
+            acc += data[p] * flat_v[indices[p]]
+        flat_out[r] = acc
 
 
 @njit(cache=True)

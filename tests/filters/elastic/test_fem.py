@@ -293,3 +293,40 @@ def test_explicit_schemes_blow_up_with_a_clear_error():
     sim.state.velocities[0] = [1.0, 0.0, 0.0]
     with pytest.raises(SimulationUnstableError, match="speed|non-finite"):
         sim.advance_to(1.0)
+
+
+def test_system_matrix_is_the_sum_of_element_hessians_mass_damping_and_pins():
+    import scipy.sparse as sp
+
+    mesh = box_tets((3, 2, 2), (0.3, 0.2, 0.2))
+    rng = np.random.default_rng(5)
+    x = mesh.positions + 0.02 * rng.normal(size=mesh.positions.shape)
+    xdir = mesh.positions + 0.02 * rng.normal(size=mesh.positions.shape)
+    pinned = mesh.positions[:, 0] < 1e-12
+    masses = lumped_masses(mesh, 1000.0)
+    h, alpha, beta = 0.01, 0.5, 0.003
+    system = FEMSystem(mesh.positions, mesh.tets, masses, youngs_modulus=E, poisson_ratio=NU,
+                       mass_damping=alpha, stiffness_damping=beta, pinned=pinned)
+    n = mesh.positions.shape[0]
+
+    def assembled(at):
+        ke = tet_hessians(at, mesh.positions, mesh.tets, youngs_modulus=E, poisson_ratio=NU)
+        dofs = (3 * mesh.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+        rows = np.repeat(dofs, 12, axis=1).ravel()
+        cols = np.tile(dofs, (1, 12)).ravel()
+        return sp.coo_matrix((ke.ravel(), (rows, cols)), shape=(3 * n, 3 * n)).toarray()
+
+    expected = (assembled(x) + beta / h * assembled(xdir)
+                + np.diag(np.repeat(masses, 3)) * (1 / h**2 + alpha / h))
+    free = np.repeat(~pinned, 3)
+    expected[~free, :] = 0.0
+    expected[:, ~free] = 0.0
+    expected[~free, ~free] = 1.0
+    got = system.system_matrix(x, xdir, h).toarray()
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    # the damping force is -(alpha M + beta K(xdir)) v
+    v = rng.normal(size=x.shape)
+    kd = assembled(xdir)
+    want = -alpha * masses[:, None] * v - beta * (kd @ v.ravel()).reshape(-1, 3)
+    np.testing.assert_allclose(system.damping_forces(xdir, v), want, rtol=1e-10,
+                               atol=1e-10 * np.abs(want).max())
