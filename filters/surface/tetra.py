@@ -77,6 +77,10 @@ def _tables():
 TRI_COUNT, TRI_EDGES, EDGE_LOWER, EDGE_DIR = _tables()
 
 
+#: Cube corner at the end of every edge direction from corner 0 (``KUHN_DIRECTIONS``).
+DIR_CORNER = np.array([int(d[0] + 2 * d[1] + 4 * d[2]) for d in KUHN_DIRECTIONS], np.int64)
+
+
 @njit(cache=True, inline="always")
 def _cube_mask(v, k, j, i, iso):
     m = 0
@@ -86,87 +90,149 @@ def _cube_mask(v, k, j, i, iso):
     return m
 
 
-@njit(cache=True)
-def _tile(values, box, origin, iso, tets, dirs, tri_count, tri_edges, edge_lower, edge_dir,
-          fill, points, p0, tris, t0, vid):
-    """Count (``fill`` False) or write the vertices and triangles of one tile.
+@njit(cache=True, inline="always")
+def _on_high_face(box, k, j):
+    """Whether the row ``(j, k)`` of a tile lies on its high y or z face (else only its last
+    point, on the high x face, has no cube of its own)."""
+    return k == box[6] or j == box[5]
 
-    ``box = (which, i0, j0, k0, i1, j1, k1)``: cells ``[i0, i1) x [j0, j1) x [k0, k1)`` of
-    ``values[which]`` (``(nz, ny, nx)``, voxel ``(i, j, k)`` at ``[k, j, i]``), whose voxel
-    ``[0, 0, 0]`` has the global index ``origin``.  Returns (vertices, triangles).
+
+@njit(cache=True)
+def _count_tile(values, box, iso, tets, dirs, dir_corner, tri_count, masks, moff):
+    """Sign masks of a tile's cubes into ``masks[moff:]``; returns (vertices, triangles).
+
+    Every vertex lies on an edge leaving a lattice point towards higher indices, inside the
+    cube whose lowest corner is that point; points on the tile's high faces have no such cube
+    and their edges are looked at one by one.
     """
     v = values[box[0]]
     i0, j0, k0, i1, j1, k1 = box[1], box[2], box[3], box[4], box[5], box[6]
+    ni = i1 - i0
+    nj = j1 - j0
     nv = 0
+    nt = 0
+    idx = moff
+    for k in range(k0, k1):
+        for j in range(j0, j1):
+            for i in range(i0, i1):
+                m = _cube_mask(v, k, j, i, iso)
+                masks[idx] = m
+                idx += 1
+                if m == 0 or m == 255:
+                    continue
+                b0 = m & 1
+                for d in range(7):
+                    if (m >> dir_corner[d]) & 1 != b0:
+                        nv += 1
+                for n in range(6):
+                    case = 0
+                    for c in range(4):
+                        case |= ((m >> tets[n, c]) & 1) << c
+                    nt += tri_count[case]
     for k in range(k0, k1 + 1):
         for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                a = v[k, j, i]
-                ina = a < iso
+            start = i0 if _on_high_face(box, k, j) else i1
+            for i in range(start, i1 + 1):
+                ina = v[k, j, i] < iso
                 for d in range(7):
                     di, dj, dk = dirs[d, 0], dirs[d, 1], dirs[d, 2]
                     if i + di > i1 or j + dj > j1 or k + dk > k1:
                         continue
-                    b = v[k + dk, j + dj, i + di]
-                    if ina == (b < iso):
-                        continue
-                    if fill:
-                        t = (iso - a) / (b - a)
-                        points[p0 + nv, 0] = np.float32(origin[0] + i + t * di)
-                        points[p0 + nv, 1] = np.float32(origin[1] + j + t * dj)
-                        points[p0 + nv, 2] = np.float32(origin[2] + k + t * dk)
-                        vid[k - k0, j - j0, i - i0, d] = p0 + nv
-                    nv += 1
-    nt = 0
+                    if ina != (v[k + dk, j + dj, i + di] < iso):
+                        nv += 1
+    return nv, nt
+
+
+@njit(cache=True, inline="always")
+def _vertex(v, origin, iso, points, index, k, j, i, dk, dj, di):
+    a = v[k, j, i]
+    b = v[k + dk, j + dj, i + di]
+    t = (iso - a) / (b - a)
+    points[index, 0] = np.float32(origin[0] + i + t * di)
+    points[index, 1] = np.float32(origin[1] + j + t * dj)
+    points[index, 2] = np.float32(origin[2] + k + t * dk)
+
+
+@njit(cache=True)
+def _fill_tile(values, box, origin, iso, tets, dirs, dir_corner, tri_count, tri_edges,
+               edge_lower, edge_dir, masks, moff, points, p0, tris, t0, vid):
+    """Write a tile's vertices (from ``p0``) and triangles (from ``t0``), with the cube masks
+    :func:`_count_tile` stored; ``vid`` (nk + 1, nj + 1, ni + 1, 7) is scratch."""
+    v = values[box[0]]
+    i0, j0, k0, i1, j1, k1 = box[1], box[2], box[3], box[4], box[5], box[6]
+    nv = p0
+    idx = moff
     for k in range(k0, k1):
         for j in range(j0, j1):
             for i in range(i0, i1):
-                mask = _cube_mask(v, k, j, i, iso)
-                if mask == 0 or mask == 255:
+                m = masks[idx]
+                idx += 1
+                if m == 0 or m == 255:
+                    continue
+                b0 = m & 1
+                for d in range(7):
+                    if (m >> dir_corner[d]) & 1 != b0:
+                        _vertex(v, origin, iso, points, nv, k, j, i, dirs[d, 2], dirs[d, 1],
+                                dirs[d, 0])
+                        vid[k - k0, j - j0, i - i0, d] = nv
+                        nv += 1
+    for k in range(k0, k1 + 1):
+        for j in range(j0, j1 + 1):
+            start = i0 if _on_high_face(box, k, j) else i1
+            for i in range(start, i1 + 1):
+                ina = v[k, j, i] < iso
+                for d in range(7):
+                    di, dj, dk = dirs[d, 0], dirs[d, 1], dirs[d, 2]
+                    if i + di > i1 or j + dj > j1 or k + dk > k1:
+                        continue
+                    if ina != (v[k + dk, j + dj, i + di] < iso):
+                        _vertex(v, origin, iso, points, nv, k, j, i, dk, dj, di)
+                        vid[k - k0, j - j0, i - i0, d] = nv
+                        nv += 1
+    nt = t0
+    idx = moff
+    for k in range(k0, k1):
+        for j in range(j0, j1):
+            for i in range(i0, i1):
+                m = masks[idx]
+                idx += 1
+                if m == 0 or m == 255:
                     continue
                 for n in range(6):
                     case = 0
                     for c in range(4):
-                        if mask >> tets[n, c] & 1:
-                            case |= 1 << c
-                    count = tri_count[case]
-                    if fill:
-                        for r in range(count):
-                            for s in range(3):
-                                ca = tets[n, tri_edges[case, r, s, 0]]
-                                cb = tets[n, tri_edges[case, r, s, 1]]
-                                lo = edge_lower[ca, cb]
-                                tris[t0 + nt + r, s] = vid[k - k0 + (lo >> 2),
-                                                           j - j0 + ((lo >> 1) & 1),
-                                                           i - i0 + (lo & 1), edge_dir[ca, cb]]
-                    nt += count
-    return nv, nt
+                        case |= ((m >> tets[n, c]) & 1) << c
+                    for r in range(tri_count[case]):
+                        for s in range(3):
+                            ca = tets[n, tri_edges[case, r, s, 0]]
+                            cb = tets[n, tri_edges[case, r, s, 1]]
+                            lo = edge_lower[ca, cb]
+                            tris[nt, s] = vid[k - k0 + (lo >> 2), j - j0 + ((lo >> 1) & 1),
+                                              i - i0 + (lo & 1), edge_dir[ca, cb]]
+                        nt += 1
 
 
 @njit(parallel=True, cache=True)
-def _count_tiles(values, boxes, origins, iso, tets, dirs, tri_count, tri_edges, edge_lower,
-                 edge_dir, counts):
-    dummy_p = np.zeros((0, 3), np.float32)
-    dummy_t = np.zeros((0, 3), np.int64)
-    dummy_v = np.zeros((0, 0, 0, 7), np.int64)
+def _count_tiles(values, boxes, iso, tets, dirs, dir_corner, tri_count, masks, moffs, counts):
     for b in prange(boxes.shape[0]):
-        nv, nt = _tile(values, boxes[b], origins[b], iso, tets, dirs, tri_count, tri_edges,
-                       edge_lower, edge_dir, False, dummy_p, 0, dummy_t, 0, dummy_v)
+        nv, nt = _count_tile(values, boxes[b], iso, tets, dirs, dir_corner, tri_count, masks,
+                             moffs[b])
         counts[b, 0] = nv
         counts[b, 1] = nt
 
 
 @njit(parallel=True, cache=True)
-def _fill_tiles(values, boxes, origins, iso, tets, dirs, tri_count, tri_edges, edge_lower,
-                edge_dir, pstart, tstart, points, tris):
+def _fill_tiles(values, boxes, origins, iso, tets, dirs, dir_corner, tri_count, tri_edges,
+                edge_lower, edge_dir, masks, moffs, pstart, tstart, points, tris):
     for b in prange(boxes.shape[0]):
         if pstart[b + 1] == pstart[b]:
             continue
         box = boxes[b]
         vid = np.empty((box[6] - box[3] + 1, box[5] - box[2] + 1, box[4] - box[1] + 1, 7),
                        np.int64)
-        _tile(values, box, origins[b], iso, tets, dirs, tri_count, tri_edges, edge_lower,
-              edge_dir, True, points, pstart[b], tris, tstart[b], vid)
+        _fill_tile(values, box, origins[b], iso, tets, dirs, dir_corner, tri_count, tri_edges,
+                   edge_lower, edge_dir, masks, moffs[b], points, pstart[b], tris, tstart[b],
+                   vid)
 
 
 def tile_boxes(shape, tile: int = 32, which: int = 0):
@@ -217,16 +283,21 @@ def contour_tiles(values, boxes, origins, iso=0.0):
     boxes = np.ascontiguousarray(boxes, dtype=np.int64).reshape(-1, 7)
     origins = np.ascontiguousarray(origins, dtype=np.int64).reshape(-1, 3)
     iso = np.float32(iso)
-    args = (KUHN_TETS, KUHN_DIRECTIONS, TRI_COUNT, TRI_EDGES, EDGE_LOWER, EDGE_DIR)
+    cells = (boxes[:, 4] - boxes[:, 1]) * (boxes[:, 5] - boxes[:, 2]) * (boxes[:, 6] - boxes[:, 3])
+    moffs = np.zeros(boxes.shape[0] + 1, np.int64)
+    np.cumsum(cells, out=moffs[1:])
+    masks = np.empty(moffs[-1], np.uint8)
     counts = np.zeros((boxes.shape[0], 2), np.int64)
-    _count_tiles(values, boxes, origins, iso, *args, counts)
+    _count_tiles(values, boxes, iso, KUHN_TETS, KUHN_DIRECTIONS, DIR_CORNER, TRI_COUNT, masks,
+                 moffs, counts)
     pstart = np.zeros(boxes.shape[0] + 1, np.int64)
     tstart = np.zeros(boxes.shape[0] + 1, np.int64)
     np.cumsum(counts[:, 0], out=pstart[1:])
     np.cumsum(counts[:, 1], out=tstart[1:])
     points = np.empty((pstart[-1], 3), np.float32)
     tris = np.empty((tstart[-1], 3), np.int64)
-    _fill_tiles(values, boxes, origins, iso, *args, pstart, tstart, points, tris)
+    _fill_tiles(values, boxes, origins, iso, KUHN_TETS, KUHN_DIRECTIONS, DIR_CORNER, TRI_COUNT,
+                TRI_EDGES, EDGE_LOWER, EDGE_DIR, masks, moffs, pstart, tstart, points, tris)
     return points, tris, pstart
 
 
