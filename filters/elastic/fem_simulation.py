@@ -25,7 +25,7 @@ from ..validation import check_finite_vector, check_int, check_range
 from .contact import Colliders
 from .fem import FEMSystem, tet_geometry
 from .mass_spring import MassSpringSimulation
-from .materials import MATERIALS, material_parameters
+from .materials import material_parameters
 from .tetmesh import TetMesh, tets_from_mesh
 
 __all__ = ["FEMModel", "FEMSimulation", "lumped_masses", "VTK_TETRA"]

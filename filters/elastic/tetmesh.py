@@ -7,7 +7,7 @@ shape (edges ``h, h sqrt 2, h sqrt 3``), so the mesh has no slivers.
 
 * :func:`box_tets` -- a box of ``nx x ny x nz`` cells (beams, blocks).
 * :func:`tets_from_mesh` -- any closed, consistently oriented triangle mesh: its interior is
-  voxelised (:func:`filters.elastic.topology.voxelize_mesh`, the same cells as the spring
+  voxelised (:func:`filters.elastic.voxelize.voxelize_mesh`, the same cells as the spring
   jello of :func:`filters.elastic.topology.jello_from_mesh`), each cell cut into six
   tetrahedra, and the mesh's vertices embedded in their tetrahedra with barycentric weights,
   so the simulation's output is the user's mesh, deformed by the elements' linear
@@ -28,7 +28,8 @@ import numpy as np
 
 from ..simplices import CORNER_OFFSETS, KUHN_TETS, kuhn_locate
 from ..validation import check_finite_vector, check_int, check_range
-from .topology import Embedding, check_triangles, voxelize_mesh
+from .topology import Embedding, check_triangles
+from .voxelize import voxelize_mesh
 
 __all__ = ["TetMesh", "box_tets", "lattice_tets", "tets_from_mesh", "tet_volumes"]
 
@@ -158,7 +159,7 @@ def tets_from_mesh(points, triangles, *, spacing):
     Raises
     ------
     ValueError
-        As :func:`filters.elastic.topology.voxelize_mesh`.
+        As :func:`filters.elastic.voxelize.voxelize_mesh`.
     """
     vox = voxelize_mesh(points, triangles, spacing)
     pts = np.asarray(points, dtype=np.float64)

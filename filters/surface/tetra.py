@@ -107,8 +107,6 @@ def _count_tile(values, box, iso, tets, dirs, dir_corner, tri_count, masks, moff
     """
     v = values[box[0]]
     i0, j0, k0, i1, j1, k1 = box[1], box[2], box[3], box[4], box[5], box[6]
-    ni = i1 - i0
-    nj = j1 - j0
     nv = 0
     nt = 0
     idx = moff

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from vtkmodules.util import numpy_support
 
 from filters.elastic.tetmesh import tet_volumes
 from filters.elastic.topology import mesh_volume

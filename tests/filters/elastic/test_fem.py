@@ -1,7 +1,5 @@
 """Finite elements: element derivatives, rigid motions, patch test, cantilever, settling, energy."""
 
-import math
-
 import numba
 import numpy as np
 import pytest
