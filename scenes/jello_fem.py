@@ -41,8 +41,7 @@ def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing:
     spacing : float
         Edge of the lattice cells cut into six tetrahedra each (m), > 0.
     material : str
-        ``neo_hookean`` (stable Neo-Hookean, Smith et al. 2018) or ``corotated`` (corotational
-        linear, Müller & Gross 2004).
+        ``neo_hookean`` (Smith, de Goes & Kim 2018) or ``corotated`` (Müller & Gross 2004).
     youngs_modulus : float
         Young's modulus E (Pa), > 0.
     poisson_ratio : float
