@@ -225,6 +225,8 @@ class Frame:
         VTK cell type of every cell, for ``topology == "cells"``.
     cell_data : dict of str to ndarray, optional
         Arrays of C rows, one per cell, named as in the :class:`OutputSpec`'s ``cell_arrays``.
+    field_data : dict of str to ndarray
+        Arrays about the whole frame (an energy account), written as field data.
     """
 
     time: float
@@ -233,6 +235,7 @@ class Frame:
     connectivity: tuple | None = None
     cell_types: np.ndarray | None = None
     cell_data: dict | None = None
+    field_data: dict = field(default_factory=dict)
 
 
 #: Most frames one run may have (a million frames is over nine hours at 30 fps).

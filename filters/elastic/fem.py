@@ -12,14 +12,14 @@ the array-level functions :func:`tet_energies`, :func:`tet_forces` and :func:`te
 :mod:`filters.integrators` as the springs: lumped masses, gravity, Rayleigh damping
 ``C = alpha M + beta K`` (Rayleigh 1877; the stiffness part with ``K`` frozen at the start of
 the step, which makes it a quadratic dissipation potential in
-:func:`filters.integrators.backward_euler`), pins, and the colliders' penalty contacts and
-Coulomb friction of :mod:`filters.elastic.contact`, evaluated by the same kernels as for the
-springs.
+:func:`filters.integrators.backward_euler`) and pins.  Contacts are not part of the system:
+the schemes add them (``contact=``, :class:`filters.elastic.contact_model.ContactModel`, the
+same barrier, friction and normal damping as for the springs), with a barrier stiffness that
+follows :meth:`FEMSystem.elastic_diagonal`.
 """
 
 from __future__ import annotations
 
-import math
 from contextlib import contextmanager
 
 import numba
@@ -27,11 +27,10 @@ import numpy as np
 
 from ..linalg import ImplicitSystem
 from ..validation import check_finite_vector, check_points, check_range
-from .contact import Colliders, contact_penalty, penalty_friction
 from .fem_kernels import (CHUNK, assemble_stiffness, color_chunks, csr_matvec, element_energies,
                           element_forces, element_hessians, finish_system, gather_nodes,
                           serial_sum)
-from .materials import MATERIALS, material_parameters
+from .materials import MATERIALS, lame_parameters, material_parameters
 
 __all__ = [
     "MATERIALS",
@@ -179,7 +178,7 @@ def tet_hessians(positions, rest_positions, tets, *, youngs_modulus, poisson_rat
 
 
 class FEMSystem(ImplicitSystem):
-    """Linear tetrahedra with a hyperelastic material, masses, gravity, damping, pins and contacts.
+    """Linear tetrahedra with a hyperelastic material, masses, gravity, damping and pins.
 
     An :class:`filters.linalg.ImplicitSystem` (see the module docstring): forces, energies and
     the implicit system matrix ``H = M/h^2 + K(x) + C(xdir)/h``, assembled in Numba into a
@@ -210,18 +209,14 @@ class FEMSystem(ImplicitSystem):
         Acceleration (m/s^2).
     pinned : (N,) bool array_like, optional
         Nodes held fixed.
-    colliders : filters.elastic.contact.Colliders, optional
-        Obstacles, as penalty contacts inside the forces, energy and system matrix
-        (:func:`filters.elastic.contact.contact_penalty`, as the springs have them) and Coulomb
-        friction after each step (:meth:`apply_contact_friction`).
-    contact_stiffness : float, optional
-        Penalty stiffness (N/m), > 0; default ten times the stiffness ``(lambda + 2 mu) l`` of
-        an element of mean edge ``l``, at least ``1e4`` N/m.
+
+    Contacts are not part of the system: the schemes of :mod:`filters.integrators` add them
+    (``contact=``, :class:`filters.elastic.contact_model.ContactModel`).
     """
 
     def __init__(self, rest_positions, tets, masses, *, youngs_modulus, poisson_ratio,
                  material="neo_hookean", mass_damping=0.0, stiffness_damping=0.0,
-                 gravity=(0.0, 0.0, -9.81), pinned=None, colliders=None, contact_stiffness=None):
+                 gravity=(0.0, 0.0, -9.81), pinned=None):
         rest = check_points("rest_positions", rest_positions)
         n = rest.shape[0]
         masses = np.ascontiguousarray(masses, dtype=np.float64)
@@ -247,9 +242,6 @@ class FEMSystem(ImplicitSystem):
             raise ValueError(f"pinned must have shape ({n},), got {pinned.shape}")
         self.pinned = pinned
         self.inv_mass = np.where(pinned, 0.0, 1.0 / masses)
-        if colliders is not None and not isinstance(colliders, Colliders):
-            raise TypeError(f"colliders must be a Colliders object, got {type(colliders).__name__}")
-        self.colliders = colliders
         nt = self.tets.shape[0]
         # node -> (element, local corner) incidence, by node then element (a fixed order)
         order = np.argsort(self.tets.ravel(), kind="stable")
@@ -264,15 +256,6 @@ class FEMSystem(ImplicitSystem):
         self._cache_force = np.empty((n, 3))
         self._cache_energy = 0.0
         self._damp_x = None  # positions of the frozen damping stiffness (in the pattern)
-        if colliders is not None:
-            edges = self.rest_positions[self.tets[:, 1:]] - self.rest_positions[self.tets[:, :1]]
-            length = float(np.sqrt((edges ** 2).sum(axis=2)).mean())
-            default = max(1e4, 10.0 * (self.lam + 2.0 * self.mu) * length)
-            self.contact_stiffness = default if contact_stiffness is None else check_range(
-                "contact_stiffness", contact_stiffness, 0.0, math.inf, low_inclusive=False)
-            self._fc = np.zeros((n, 3))
-            self._cb = np.zeros((n, 3, 3))
-            self._mu = np.zeros(n)
 
     @property
     def n_tets(self) -> int:
@@ -339,31 +322,9 @@ class FEMSystem(ImplicitSystem):
             self._damp_x = np.array(xdir, dtype=np.float64, copy=True)
         return p["damping"]
 
-    # -- contacts ----------------------------------------------------------------------------
-    def _contacts(self, x):
-        """Penalty contact energy (J); fills contact forces, Hessian blocks and friction."""
-        c = self.colliders
-        with _threads(self.n_tets):
-            return float(contact_penalty(np.ascontiguousarray(x, dtype=np.float64), c.planes,
-                                         c.spheres, c.boxes, c.thickness, self.contact_stiffness,
-                                         self.pinned, self._fc, self._cb, self._mu))
-
-    def contact_energy(self, x) -> float:
-        """Penalty energy (J) of the contacts at ``x`` (0 without colliders)."""
-        return self._contacts(x) if self.colliders is not None else 0.0
-
-    def apply_contact_friction(self, x, v, h):
-        """Coulomb friction of the penalty contacts at ``x`` on velocities ``v`` (in place),
-        by :func:`filters.elastic.contact.penalty_friction`."""
-        if self.colliders is None:
-            return
-        self._contacts(x)
-        penalty_friction(v, self._fc, self._mu, self.inv_mass, float(h))
-
     # -- ImplicitSystem ----------------------------------------------------------------------
     def forces(self, x, v, out=None):
-        """Total force (N): elastic, gravity and damping (contacts are in
-        :meth:`conservative_forces`), (N, 3)."""
+        """Total force (N): elastic, gravity and damping, (N, 3)."""
         f = np.empty_like(x) if out is None else out
         f[...] = self._elastic(x)[0]
         f += self.masses[:, None] * self.gravity[None, :]
@@ -371,13 +332,10 @@ class FEMSystem(ImplicitSystem):
         return f
 
     def conservative_forces(self, x, out=None):
-        """Elastic, gravity and contact forces (N), (N, 3)."""
+        """Elastic and gravity forces (N), (N, 3); contacts are the integrators'."""
         f = np.empty_like(x) if out is None else out
         f[...] = self._elastic(x)[0]
         f += self.masses[:, None] * self.gravity[None, :]
-        if self.colliders is not None:
-            self._contacts(x)
-            f += self._fc
         return f
 
     def damping_forces(self, xdir, v, out=None):
@@ -399,24 +357,28 @@ class FEMSystem(ImplicitSystem):
         return float(-np.einsum("i,ij,j->", self.masses, x, self.gravity))
 
     def potential_energy(self, x):
-        """Elastic plus gravitational plus contact energy (J)."""
-        return self.elastic_energy(x) + self.gravitational_energy(x) + self.contact_energy(x)
+        """Elastic plus gravitational energy (J)."""
+        return self.elastic_energy(x) + self.gravitational_energy(x)
 
     def kinetic_energy(self, v):
         """Kinetic energy (J)."""
         return float(0.5 * np.einsum("i,ij,ij->", self.masses, v, v))
 
     def energy(self, x, v):
-        """Total mechanical energy (J)."""
+        """Kinetic plus potential energy (J) (contacts are the contact model's)."""
         return self.kinetic_energy(v) + self.potential_energy(x)
 
-    def energies(self, x, v) -> dict:
-        """The energy account (J): ``kinetic``, ``gravitational``, ``elastic``, ``contact`` and
-        their ``total``."""
-        parts = {"kinetic": self.kinetic_energy(v), "gravitational": self.gravitational_energy(x),
-                 "elastic": self.elastic_energy(x), "contact": self.contact_energy(x)}
-        parts["total"] = sum(parts.values())
-        return parts
+    def elastic_diagonal(self) -> np.ndarray:
+        """Each node's elastic stiffness (N/m) at rest, (N,): the mean diagonal entry of its
+        block of ``K``, ``sum_e W_e |g_ek|^2 (mu + (lambda + mu) / 3)`` with the Lamé
+        constants of ``E`` and ``nu`` (both materials linearise to linear elasticity, whose
+        element stiffness block is ``W (mu |g|^2 I + (lambda + mu) g g^T)``).  The contact
+        model scales its barrier stiffness by it, as for the springs."""
+        mu, lam = lame_parameters(self.youngs_modulus, self.poisson_ratio)
+        g2 = np.einsum("tkj,tkj->tk", self.grads, self.grads)
+        per_corner = self.volumes[:, None] * g2 * (mu + (lam + mu) / 3.0)
+        return np.bincount(self.tets.ravel(), weights=per_corner.ravel(),
+                           minlength=self.n_points)
 
     def _build_pattern(self):
         """The block CSR pattern of the node adjacency, where every element block lands in it,
@@ -458,8 +420,8 @@ class FEMSystem(ImplicitSystem):
             diag=np.zeros((n, 3, 3)))
 
     def system_matrix(self, x, xdir, h):
-        """Assemble ``H = M (1/h^2 + alpha/h) + K(x) + beta K(xdir)/h`` (+ contact blocks) in
-        place into the fixed-pattern CSR matrix.
+        """Assemble ``H = M (1/h^2 + alpha/h) + K(x) + beta K(xdir)/h`` in place into the
+        fixed-pattern CSR matrix.
 
         Parameters
         ----------
@@ -487,9 +449,6 @@ class FEMSystem(ImplicitSystem):
         m = self.masses * (1.0 / (h * h) + self.mass_damping / h)
         for r in range(3):
             diag[:, r, r] = m
-        if self.colliders is not None:
-            self._contacts(x)
-            diag += self._cb
         mat = p["matrix"]
         with _threads(self.n_tets):
             finish_system(mat.indptr, mat.indices, stiffness, damping, scale, p["diag_offset"],

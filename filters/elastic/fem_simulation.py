@@ -4,11 +4,13 @@
 :class:`filters.elastic.fem.FEMSystem` and is advanced exactly like the mass-spring
 simulations (:class:`filters.elastic.mass_spring.MassSpringSimulation`, whose step it
 inherits): one of the schemes of :mod:`filters.integrators` (backward Euler by Newton with a
-line search on the incremental potential by default), penalty contacts with the colliders
-inside the implicit solve and Coulomb friction after it, and the same instability check.
-Its frames are the tetrahedra (a VTK unstructured grid with the strain energy density per
-cell); the user's embedded surface follows from the nodes with the mesh's barycentric weights
-(:meth:`FEMSimulation.mesh_points`).
+line search on the incremental potential by default), the colliders' barrier contacts, lagged
+Coulomb friction and normal damping inside every step
+(:class:`filters.elastic.contact_model.ContactModel`, the embedded surface's vertices as the
+contact points, as for the spring jello), the same energy account and the same instability
+check.  Its frames are the tetrahedra (a VTK unstructured grid with the strain energy density
+per cell, the energy account as field data); the user's embedded surface follows from the
+nodes with the mesh's barycentric weights (:meth:`FEMSimulation.mesh_points`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from ..linalg import LinearSolver
 from ..simulation import Frame, OutputSpec, State
 from ..validation import check_finite_vector, check_int, check_range
 from .contact import Colliders
+from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, ContactModel
 from .fem import FEMSystem, tet_geometry
 from .mass_spring import MassSpringSimulation
 from .materials import material_parameters
@@ -120,7 +123,9 @@ class FEMSimulation(MassSpringSimulation):
     solver : {"auto", "pcg", "direct"}
         Linear solver of the implicit schemes.
     colliders : Colliders, optional
-        Obstacles (penalty contacts and friction, as for the springs).
+        Obstacles: barrier contacts, friction and normal damping inside every step of every
+        scheme, as for the springs; the contact points are the embedded surface's vertices
+        (the nodes for a mesh without one), so that what is drawn is what touches.
     max_dt : float
         Largest step (s) :meth:`advance_to` takes, > 0.
     substeps : int
@@ -132,7 +137,13 @@ class FEMSimulation(MassSpringSimulation):
     max_speed : float
         Any node faster than this (m/s) raises :class:`SimulationUnstableError`.
     contact_stiffness : float, optional
-        Penalty stiffness (N/m) (see :class:`filters.elastic.fem.FEMSystem`).
+        One barrier stiffness (N/m) for every contact point, > 0; by default each point's is
+        ``contact_ratio`` times its share of ``m / (max_dt / substeps)^2`` plus the nodes'
+        elastic stiffness (:meth:`filters.elastic.fem.FEMSystem.elastic_diagonal`).
+    contact_ratio : float
+        Barrier stiffness over that diagonal, > 0.
+    slip_velocity : float
+        Slip velocity (m/s) below which friction holds (static friction creeps slower), > 0.
     """
 
     instability_hint = ("the elements are too stiff for this time step: use "
@@ -142,7 +153,8 @@ class FEMSimulation(MassSpringSimulation):
                  density=1000.0, material="neo_hookean", mass_damping=0.0, stiffness_damping=0.0,
                  gravity=(0.0, 0.0, -9.81), pinned=None, scheme="backward_euler", solver="auto",
                  colliders=None, max_dt=1.0 / 60.0, substeps=1, newton_tol=1e-3, max_newton=10,
-                 max_speed=100.0, contact_stiffness=None):
+                 max_speed=100.0, contact_stiffness=None, contact_ratio=DEFAULT_STIFFNESS_RATIO,
+                 slip_velocity=DEFAULT_SLIP_VELOCITY):
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be a TetMesh, got {type(mesh).__name__}")
         material_parameters(material, youngs_modulus, poisson_ratio)  # validates all three
@@ -160,6 +172,11 @@ class FEMSimulation(MassSpringSimulation):
                                                    low_inclusive=False),
                             max_newton=check_int("max_newton", max_newton, 1))
         max_speed = check_range("max_speed", max_speed, 0.0, math.inf, low_inclusive=False)
+        check_range("contact_ratio", contact_ratio, 0.0, math.inf, low_inclusive=False)
+        check_range("slip_velocity", slip_velocity, 0.0, math.inf, low_inclusive=False)
+        if contact_stiffness is not None:
+            check_range("contact_stiffness", contact_stiffness, 0.0, math.inf,
+                        low_inclusive=False)
         n = mesh.positions.shape[0]
         mask = np.zeros(n, dtype=bool)
         if pinned is not None:
@@ -176,15 +193,24 @@ class FEMSimulation(MassSpringSimulation):
         self.model = FEMModel(mesh, material, float(youngs_modulus), float(poisson_ratio),
                               density, mass_damping, stiffness_damping, tuple(gravity), scheme,
                               solver, substeps, max_speed)
-        implicit = scheme in ("backward_euler", "linearized_backward_euler")
-        self.system = FEMSystem(mesh.positions, mesh.tets, lumped_masses(mesh, density),
+        masses = lumped_masses(mesh, density)
+        self.system = FEMSystem(mesh.positions, mesh.tets, masses,
                                 youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
                                 material=material, mass_damping=mass_damping,
                                 stiffness_damping=stiffness_damping, gravity=gravity,
-                                pinned=mask, colliders=colliders if implicit else None,
-                                contact_stiffness=contact_stiffness)
+                                pinned=mask)
         self.colliders = colliders
+        self.contact = None
+        if colliders is not None:
+            emb = mesh.embedding
+            self.contact = ContactModel(
+                colliders, masses, self.max_dt / substeps,
+                embedding=None if emb is None else (emb.nodes, emb.weights), pinned=mask,
+                stiffness_ratio=contact_ratio, stiffness=contact_stiffness,
+                slip_velocity=slip_velocity, elastic_diagonal=self.system.elastic_diagonal())
         self.state = State(mesh.positions, velocities)
+        if self.contact is not None:
+            self.contact.check_outside(self.state.positions)
         self.state.velocities[mask] = 0.0
         self.last_info = None
 
@@ -203,7 +229,8 @@ class FEMSimulation(MassSpringSimulation):
 
     def frame(self) -> Frame:
         """The tetrahedra at the current state: node positions, ``velocity`` and ``id`` per
-        node, ``strain_energy_density`` (J/m^3) per tetrahedron."""
+        node, ``strain_energy_density`` (J/m^3) per tetrahedron, the energy account
+        (:meth:`energies`) as field data."""
         s = self.state
         tets = self.model.mesh.tets
         offsets = np.arange(0, 4 * tets.shape[0] + 1, 4, dtype=np.int64)
@@ -213,14 +240,10 @@ class FEMSimulation(MassSpringSimulation):
                      connectivity=(offsets, tets.ravel().copy()),
                      cell_types=np.full(tets.shape[0], VTK_TETRA, dtype=np.uint8),
                      cell_data={"strain_energy_density":
-                                self.system.energy_density(s.positions)})
+                                self.system.energy_density(s.positions)},
+                     field_data=self.energies().field_data())
 
     # -- diagnostics ------------------------------------------------------------------------
-    def energies(self) -> dict:
-        """Energy account (J) of the current state: ``kinetic``, ``gravitational``,
-        ``elastic``, ``contact`` and ``total``."""
-        return self.system.energies(self.state.positions, self.state.velocities)
-
     def mesh_points(self) -> np.ndarray:
         """The embedded surface's vertices (M, 3) (m) for the current state."""
         emb = self.model.mesh.embedding

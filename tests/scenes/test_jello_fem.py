@@ -34,16 +34,45 @@ def test_jello_falls_rests_on_the_floor_and_keeps_its_volume(run):
     rest_mesh = mesh_volume(surfaces[0].points, triangles)
     for grid, surface in zip(tets, surfaces):
         x = np.asarray(grid.points)
-        assert x[:, 2].min() > -2e-3  # never through the floor
-        # nu = 0.45: the volume stays within 1 % through the fall, the impact and the wobble
-        assert tet_volumes(x, cells).sum() == pytest.approx(rest, rel=0.01)
-        assert mesh_volume(surface.points, triangles) == pytest.approx(rest_mesh, rel=0.01)
+        # the mesh's vertices touch the floor (a 1 mm barrier): never through it
+        assert np.asarray(surface.points)[:, 2].min() > 0.0
+        # nu = 0.45: the impact, stopped by inelastic contacts within a step, compresses the
+        # volume by up to ~1 % (2 % at the default 0.4 m drop); it comes back
+        assert tet_volumes(x, cells).sum() == pytest.approx(rest, rel=0.02)
+        assert mesh_volume(surface.points, triangles) == pytest.approx(rest_mesh, rel=0.02)
         density = np.asarray(grid.cell_data["strain_energy_density"])
         assert density.shape == (cells.shape[0],) and density.min() >= -1e-9
-    # it fell from 0.1 m and now rests on the floor (the lattice reaches 0.25 spacing below)
+    # it fell from 0.1 m and now rests on the floor
     assert np.asarray(surfaces[0].points)[:, 2].min() == pytest.approx(0.1)
-    assert np.asarray(surfaces[-1].points)[:, 2].min() < 0.3 * SMALL["spacing"]
+    assert np.asarray(surfaces[-1].points)[:, 2].min() < 2e-3
+    # and, settling, keeps its volume within 1 %
+    for grid, surface in zip(tets[-3:], surfaces[-3:]):
+        assert tet_volumes(np.asarray(grid.points), cells).sum() == pytest.approx(rest, rel=0.01)
+        assert mesh_volume(surface.points, triangles) == pytest.approx(rest_mesh, rel=0.01)
     assert np.asarray(tets[-1].cell_data["strain_energy_density"]).max() > 0.0
+
+
+def _mass():
+    return float(load_scene("jello_fem").build(**SMALL).source.simulation.system.masses.sum())
+
+
+def test_energy_account_in_the_frames_never_rises(run):
+    from filters.elastic.energy import ENERGY_FIELDS
+
+    _, tets = read_series(run / "tets.pvd")
+    totals = []
+    for grid in tets:
+        values = {name: float(np.asarray(grid.field_data[name]).ravel()[0])
+                  for name in ENERGY_FIELDS}
+        assert values["energy_total"] == pytest.approx(
+            sum(values[name] for name in ENERGY_FIELDS[:-1]))
+        totals.append(values["energy_total"])
+    # nothing does work on the jello: damping, friction and inelastic contacts only take, up
+    # to what backward Euler accepts per step (the kinetic energy of the whole mass at the
+    # Newton tolerance, 1 mm/s), 8 steps of 1/240 s per frame
+    mass = _mass()
+    assert np.all(np.diff(totals) <= 8 * mass * 1e-3**2)
+    assert totals[-1] < 0.9 * totals[0]
 
 
 def test_embedded_mesh_follows_the_tetrahedra(run):
