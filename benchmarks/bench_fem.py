@@ -1,4 +1,4 @@
-"""Benchmark: finite-element jello against the spring jello, marching tetrahedra against flying edges.
+"""Benchmark: the FEM jello against the spring jello, marching tetrahedra against flying edges.
 
 Run (under the project's benchmark lock when the machine is free)::
 
@@ -9,9 +9,10 @@ Run (under the project's benchmark lock when the machine is free)::
    tets_from_mesh`), resting 5 mm above a floor with friction 0.5 and moving at 0.5 m/s
    sideways and 1 m/s down, so that every step has contacts (the mesh's vertices against the
    floor: IPC barrier, lagged friction, normal damping, :mod:`filters.elastic.contact_model`);
-   backward Euler (Newton, line search, the default solver) at ``h = 1/240`` s, the scene's defaults (``jello_fem``:
-   stable Neo-Hookean, E = 5e4 Pa, nu = 0.45, Rayleigh beta 0.002 s; also the corotated
-   material), against the spring jello of ``jello_drop`` (stiffness 300 N, damping 0.5 N s/m)
+   backward Euler (Newton, line search, the default solver) at ``h = 1/240`` s, the scene's
+   defaults (``jello_fem``: stable Neo-Hookean, E = 5e4 Pa, nu = 0.45, Rayleigh beta 0.002 s;
+   also the corotated material), against the spring jello (:class:`filters.elastic.
+   mass_spring.JelloSimulation`, stiffness 300 N, damping 0.5 N s/m)
    on the *same lattice* (the same nodes: the spring lattice and the tetrahedra share the
    voxelisation), steps interleaved between the models.  Reported per model: ms per step
    (median, min), Newton and PCG iterations and direct solves per step.
