@@ -12,8 +12,9 @@ them). Stages that need the particles read them on their second input port
     inside) computed by :mod:`filters.surface.splat`, optionally combined with a shape of
     :mod:`filters.geometry` (:mod:`filters.surface.csg`).
 ``MarchingCubes``
-    vtkFlyingEdges3D at ``value`` (0 for our fields): one watertight vtkPolyData, bricks
-    contoured in voxel-index coordinates and stitched (:mod:`pipeline.contour`).
+    vtkFlyingEdges3D at ``value`` (0 for our fields), or marching tetrahedra
+    (``method="tetrahedra"``): one watertight vtkPolyData, bricks contoured in voxel-index
+    coordinates and stitched (:mod:`pipeline.contour`).
 ``ClipBox`` (with a tank whose walls the particles are mirrored across)
     The surface cut exactly at the tank's walls and closed with flat faces
     (:mod:`pipeline.liquid`); the smoothing stages keep those faces on the walls.
@@ -43,6 +44,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageData,
                                            vtkPartitionedDataSet,
                                            vtkPointSet, vtkPolyData)
@@ -55,11 +57,13 @@ from filters.surface.ellipsoids import ANISOTROPIC_KERNELS
 from filters.surface.grid import DEFAULT_MAX_BYTES
 from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
                                    splat_sparse_anisotropic)
+from filters.surface.tetra import TetraPieces
 from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
 from .algorithm import Algorithm, run_chain
-from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
+from .contour import (CONTOUR_METHODS, Pieces, brick_images, flying_edges, image_of,
+                      mesh_to_polydata)
 from .liquid import ClipBox, VolumeCorrection
 from .mesh_stages import Normals, Smooth
 from .particle_stages import (FeatureSmoothing, InterpolateAttributes, check_optional_range,
@@ -248,12 +252,17 @@ class MarchingCubes(Algorithm):
     ----------
     value : float
         Contour value, finite (0 for :class:`MetaballSplat` output: negative inside).
+    method : {"flying_edges", "tetrahedra"}
+        ``"flying_edges"``: VTK's vtkFlyingEdges3D (marching cubes); ``"tetrahedra"``: marching
+        tetrahedra on the Kuhn split of every cube (:mod:`filters.surface.tetra`), in Numba,
+        about twice the triangles.  Both stitch bricks into one mesh with shared vertices.
     """
 
-    def __init__(self, value: float = 0.0):
+    def __init__(self, value: float = 0.0, method: str = "flying_edges"):
         self.value = check_range("value", value)
         if not math.isfinite(self.value):
             raise ValueError(f"value must be finite, got {value!r}")
+        self.method = check_choice("method", method, CONTOUR_METHODS)
         Algorithm.__init__(self, nInputPorts=1, inputType="vtkDataObject", nOutputPorts=1,
                            outputType="vtkPolyData")
 
@@ -272,9 +281,13 @@ class MarchingCubes(Algorithm):
         else:
             raise TypeError(f"MarchingCubes needs vtkImageData or vtkPartitionedDataSet input, "
                             f"got {inp.GetClassName()}")
-        fe = flying_edges()
-        fe.SetValue(0, self.value)
-        pieces = Pieces()
+        tetra = self.method == "tetrahedra"
+        if tetra:
+            pieces = TetraPieces(self.value)
+        else:
+            fe = flying_edges()
+            fe.SetValue(0, self.value)
+            pieces = Pieces()
         cell = None
         for im in images:
             if im.GetNumberOfPoints() == 0 or min(im.GetDimensions()) < 2:
@@ -287,6 +300,14 @@ class MarchingCubes(Algorithm):
                 cell = float(spacing[0])
             # contour in index space so that bricks share bitwise equal vertices
             index_origin = np.round(np.array(im.GetOrigin()) / spacing)
+            if tetra:
+                nx, ny, nz = im.GetDimensions()
+                scalars = im.GetPointData().GetScalars()
+                if scalars is None:
+                    raise ValueError("MarchingCubes needs point scalars on its input images")
+                values = numpy_support.vtk_to_numpy(scalars).reshape(nz, ny, nx)
+                pieces.add(values, index_origin.astype(np.int64))
+                continue
             work = vtkImageData()
             work.ShallowCopy(im)
             work.SetOrigin(*index_origin)
@@ -314,7 +335,7 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
                    volume_correction: bool = SURFACE_DEFAULTS["volume_correction"],
                    support_r=None,
                    blobbiness: float = 4.0, radius_array: str | None = None,
-                   **splat_options) -> list:
+                   contour: str = "flying_edges", **splat_options) -> list:
     """The chain particles -> surface as a list of algorithms.
 
     ``flow.add("surface", *surface_stages(radius=0.01), input="particles")``. The defaults
@@ -355,6 +376,8 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
         (the surface then encloses the shape's volume too, and no correction is made).
     support_r, blobbiness, radius_array
         As in :class:`MetaballSplat` (shared with the stages that read the particles).
+    contour : {"flying_edges", "tetrahedra"}
+        Contouring method of :class:`MarchingCubes`.
     **splat_options
         Further keyword arguments of :class:`MetaballSplat` (``iso``, ``sparse``, ``block_size``,
         ``brick_blocks``, ``max_bytes``, ``implicit``, ``operation``, ``anisotropy``,
@@ -371,7 +394,7 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     smooth_iterations = check_int("smooth_iterations", smooth_iterations, 0, 1000)
     normals = check_bool("normals", normals)
     walls = splat.walls
-    stages = [splat, MarchingCubes()]
+    stages = [splat, MarchingCubes(method=contour)]
     if walls is not None:
         stages.append(ClipBox(walls, tolerance=0.01 * splat.cell_size))
     if feature_smoothing:

@@ -55,6 +55,7 @@ SURFACE_PARAMETERS = {p.name: p for p in (
     Parameter("max_bytes", DEFAULT_MAX_BYTES, "grid memory budget (bytes)"),
     Parameter("operation", "intersection", "how the tank combines with the field"),
     Parameter("mirror_walls", False, "ghosts across the tank's walls, exact cut"),
+    Parameter("contour", "flying_edges", "flying_edges or tetrahedra"),
 )}
 
 
