@@ -38,7 +38,9 @@ Run alone (the machine has 2 cores)::
     env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_splash.py [--quick]
 
 ``--quick`` skips the 2 mm pool and the 6 mm ``drop`` run (their simulations take most of the
-run). Writes
+run); ``--only CASE`` (``drops``, ``pools``, ``motion``, ``sheets``; repeatable) runs those cases
+only and keeps the other entries of an existing ``splash.json`` (``pools`` also measures
+``temporal_rest``, ``motion`` also ``drop_topology``). Writes
 ``benchmarks/results/splash.json``.
 """
 
@@ -69,6 +71,7 @@ POOL_SETTLE_S = 1.0
 FPS = 30.0
 REST_FRAMES = 10
 DROP_SPACING = 0.012  # the drop scene's default
+CASES = ("drops", "pools", "motion", "sheets")
 
 
 # --------------------------------------------------------------------------------------------
@@ -383,9 +386,16 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true",
                         help="skip the 2 mm pool and the 6 mm drop run")
+    parser.add_argument("--only", action="append", choices=CASES, default=None,
+                        help="run only this case (repeatable); the other entries of an existing "
+                             "splash.json are kept")
     args = parser.parse_args(argv)
+    cases = set(args.only or CASES)
     report = print
-    out = {"benchmark": "splash", "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    path = RESULTS / "splash.json"
+    previous = json.loads(path.read_text()) if args.only and path.exists() else {}
+    out = {**previous, "benchmark": "splash",
+           "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
            "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                        "numba_threads": numba.get_num_threads(),
                        "load_average_start": list(os.getloadavg())},
@@ -396,23 +406,29 @@ def main(argv=None) -> int:
                                         "2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing "
                                         "iterations, float32"}}
     scene_surface(ball(2, 0.02, 0.05), 0.02)  # compile / load the Numba cache first
-    report("drops (volume error against N s^3)")
-    out["drops"] = run_drops(report)
-    report("settled pools")
-    out["pools"], out["temporal_rest"] = run_pools(report, (0.004,) if args.quick
-                                                   else (0.004, 0.002))
-    report("drop scene frames (defaults: 12 mm spacing)")
-    out["temporal_motion"], out["drop_topology"] = run_motion(report)
-    if not args.quick:
-        report("drop scene frames at 6 mm spacing")
-        out["temporal_motion_6mm"], out["drop_topology_6mm"] = run_motion(report,
-                                                                          "spacing=0.006")
-    out["quick"] = bool(args.quick)
-    report("thin sheets")
-    out["thin_sheets"] = run_sheets(report)
+    if "drops" in cases:
+        report("drops (volume error against N s^3)")
+        out["drops"] = run_drops(report)
+    if "pools" in cases:
+        report("settled pools")
+        out["pools"], out["temporal_rest"] = run_pools(report, (0.004,) if args.quick
+                                                       else (0.004, 0.002))
+    if "motion" in cases:
+        report("drop scene frames (defaults: 12 mm spacing)")
+        out["temporal_motion"], out["drop_topology"] = run_motion(report)
+        if not args.quick:
+            report("drop scene frames at 6 mm spacing")
+            out["temporal_motion_6mm"], out["drop_topology_6mm"] = run_motion(report,
+                                                                              "spacing=0.006")
+    if cases & {"pools", "motion"}:
+        out["quick"] = bool(args.quick)
+    if args.only:
+        out["cases_run"] = sorted(cases)
+    if "sheets" in cases:
+        report("thin sheets")
+        out["thin_sheets"] = run_sheets(report)
     out["machine"]["load_average_end"] = list(os.getloadavg())
     RESULTS.mkdir(exist_ok=True)
-    path = RESULTS / "splash.json"
     path.write_text(json.dumps(out, indent=2))
     report(f"wrote {path}")
     return 0
