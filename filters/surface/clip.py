@@ -144,30 +144,61 @@ def clip_half_space(points, triangles, axis: int, value: float, keep: int, *, da
 
 @njit(cache=True)
 def _chain(edges, n):
-    """Loops of directed edges (every vertex with one edge out and one in): (order, starts)."""
-    nxt = np.full(n, -1, np.int64)
-    for k in range(edges.shape[0]):
-        if nxt[edges[k, 0]] >= 0:
-            return np.zeros(0, np.int64), np.zeros(1, np.int64)
-        nxt[edges[k, 0]] = edges[k, 1]
-    seen = np.zeros(n, np.bool_)
-    order = np.empty(edges.shape[0], np.int64)
-    starts = np.empty(edges.shape[0] + 1, np.int64)
+    """Simple loops of directed edges where every vertex has as many edges out as in: (order,
+    starts). A vertex with two or more edges out (the surface pinched onto the plane at one
+    point, two loops touching there) is in as many loops; each walk is cut into a loop as soon
+    as it comes back to a vertex it has passed, so no loop repeats a vertex. Empty ``order`` if
+    some vertex has more edges out than in."""
+    m_edges = edges.shape[0]
+    count = np.zeros(n + 1, np.int64)
+    for k in range(m_edges):
+        count[edges[k, 0] + 1] += 1
+    first = np.cumsum(count)  # out-edges of v: by_source[first[v]:first[v + 1]]
+    fill = first[:-1].copy()
+    by_source = np.empty(m_edges, np.int64)
+    for k in range(m_edges):
+        by_source[fill[edges[k, 0]]] = k
+        fill[edges[k, 0]] += 1
+    nxt_free = first[:-1].copy()  # next unused out-edge of each vertex
+    pos = np.full(n, -1, np.int64)  # position of a vertex on the current walk
+    path = np.empty(m_edges + 1, np.int64)
+    order = np.empty(m_edges, np.int64)
+    starts = np.empty(m_edges + 1, np.int64)
+    failed = (np.zeros(0, np.int64), np.zeros(1, np.int64))
     m = 0
     loops = 0
-    for k in range(edges.shape[0]):
-        v = edges[k, 0]
-        if seen[v]:
-            continue
-        starts[loops] = m
-        loops += 1
-        while not seen[v]:
-            if v < 0:
-                return np.zeros(0, np.int64), np.zeros(1, np.int64)
-            seen[v] = True
-            order[m] = v
-            m += 1
-            v = nxt[v]
+    for k0 in range(m_edges):
+        v = edges[k0, 0]
+        if nxt_free[v] >= first[v + 1]:
+            continue  # every edge out of v is in a loop already
+        length = 1
+        path[0] = v
+        pos[v] = 0
+        while True:
+            if nxt_free[v] >= first[v + 1]:
+                if length == 1:
+                    pos[v] = -1
+                    break
+                return failed  # a walk stuck before closing: unbalanced edges
+            e = by_source[nxt_free[v]]
+            nxt_free[v] += 1
+            w = edges[e, 1]
+            if pos[w] >= 0:  # closed a loop path[pos[w]:]
+                p = pos[w]
+                starts[loops] = m
+                loops += 1
+                for i in range(p, length):
+                    order[m] = path[i]
+                    m += 1
+                    if i > p:
+                        pos[path[i]] = -1
+                length = p + 1
+                v = w
+            else:
+                path[length] = w
+                pos[w] = length
+                length += 1
+                v = w
     starts[loops] = m
     return order[:m].copy(), starts[:loops + 1].copy()
 
@@ -188,12 +219,14 @@ def cap_loops(points, edges, axis: int, lower, upper):
     Raises
     ------
     ValueError
-        If the edges do not form simple loops (a vertex with two edges out).
+        If the edges do not form closed loops (a vertex with more edges out than in). A vertex
+        with two edges out and two in (the surface touching the plane at one point) is in two
+        loops.
     """
     edges = np.ascontiguousarray(edges, dtype=np.int64)
     order, starts = _chain(edges, int(points.shape[0]))
     if order.size != edges.shape[0]:
-        raise ValueError("the cut's edges do not form simple loops")
+        raise ValueError("the cut's edges do not form closed loops")
     lower = np.asarray(lower, np.float64)
     upper = np.asarray(upper, np.float64)
     others = [a for a in range(3) if a != axis]

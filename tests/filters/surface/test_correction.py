@@ -226,3 +226,40 @@ def test_clip_half_space_rejects_bad_arguments():
     # a plane missing the mesh: everything kept, no cut
     p2, t2, _, cap = clip_half_space(pts, tris, 0, -5.0, 1)
     assert np.array_equal(t2, tris) and cap.size == 0
+
+
+def _octahedron(centre):
+    c = np.asarray(centre, float)
+    pts = c + np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                       float)
+    tris = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
+                     [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]], np.int64)
+    return pts, tris
+
+
+def test_a_cut_through_a_point_where_two_pieces_touch_is_closed():
+    """Two octahedra touching at one vertex that lies on a wall (as the liquid's surface can
+    touch a tank wall at one point): the cut's boundary passes that vertex twice, two loops
+    share it; both are capped and the result is closed with the exact half volumes."""
+    from pipeline.algorithm import run_chain
+    from pipeline.contour import mesh_to_polydata
+    from pipeline.liquid import ClipBox
+    from vtkmodules.util import numpy_support
+
+    pa, ta = _octahedron((0.0, -1.0, 0.0))
+    pb, tb = _octahedron((0.0, 1.0, 0.0))
+    # the vertex (0, 0, 0) is pa[2] and pb[3]: make it one point
+    pts = np.concatenate([pa, np.delete(pb, 3, axis=0)])
+    remap = np.array([6, 7, 8, 2, 9, 10])  # pb's indices in pts
+    tris = np.concatenate([ta, remap[tb]])
+    edges = np.array([[0, 1], [1, 2], [2, 0], [0, 3], [3, 4], [4, 0]])
+    loops, runs = cap_loops(np.zeros((5, 3)), edges, 0, (-9.0, -9, -9), (9.0, 9, 9))
+    assert sorted(len(loop) for loop in loops) == [3, 3] and not runs
+    assert all(0 in loop for loop in loops)
+    out = run_chain([ClipBox(Box((0.0, -5.0, -5.0), (5.0, 5.0, 5.0)))],
+                    mesh_to_polydata(pts, tris))
+    p = numpy_support.vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)
+    t = numpy_support.vtk_to_numpy(out.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+    st = mesh_stats(p, t)
+    assert st.closed
+    assert st.volume == pytest.approx(2 * (4.0 / 3.0) / 2, rel=1e-12)
