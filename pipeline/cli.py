@@ -283,8 +283,9 @@ def _scene_record(scene, parameters, fps, outputs) -> dict:
     return {"scene": scene.name, "fps": fps, "parameters": parameters, "outputs": outputs}
 
 
-#: What ``blobflow run`` writes beside the series (renders), removed with a previous run.
-_RUN_FILES = ("turntable.gif", "movie.mp4")
+#: What ``blobflow run`` writes beside the series (renders, colliders), removed with a previous
+#: run.
+_RUN_FILES = ("turntable.gif", "movie.mp4", "colliders.vtp")
 
 
 def _read_record(out: Path) -> dict | None:

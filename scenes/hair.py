@@ -52,12 +52,15 @@ def build(*, strands: int = 200, segments: int = 16, length: float = 0.3,
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     center = np.array([0.0, 0.0, 1.5])
     roots = center + head_radius * d
-    head = Colliders(friction=0.3, thickness=0.002).add(Sphere(center, head_radius * 0.98))
+    head = Sphere(center, head_radius * 0.98)  # just inside the roots
+    colliders = Colliders(friction=0.3, thickness=0.002).add(head)
     sim = HairSimulation(roots, d, segments=segments, length=length,
                          stretch_stiffness=stiffness, bend_stiffness=bend, damping=damping,
-                         colliders=head, max_dt=max_dt, cells="segments")
-    return Flow(SimulationSource(sim, fps=SCENE_FPS, duration=SCENE_DURATION), name="hair",
+                         colliders=colliders, max_dt=max_dt, cells="segments")
+    flow = Flow(SimulationSource(sim, fps=SCENE_FPS, duration=SCENE_DURATION), name="hair",
                 xdmf=True)
+    flow.add_collider("head", head)
+    return flow
 
 
 SCENE = Scene("hair", build, "pinned hair strands swinging on a head (mass-spring chains)",

@@ -78,6 +78,9 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
         size_range=(0.5 * radius, radius), variation_frequency=3.0, seed=seed)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION),
                 name="particles")
+    flow.add_collider("floor", floor, role="floor")
+    for obstacle in obstacles:
+        flow.add_collider("ball", obstacle)
     if surface:
         from pipeline.surface import surface_stages
 
