@@ -44,7 +44,7 @@ RUNS = [
     ("hair", ["run", "hair", "--frames", "3", "--set", "strands=12", "--set", "segments=5"]),
     ("jello_drop", ["run", "jello_drop", "--frames", "3", "--set", "spacing=0.06"]),
     ("noise_smoke", ["run", "noise_smoke", "--frames", "4", "--set", "rate=3000",
-                     "--set", "max_particles=300"]),
+                     "--set", "max_particles=300", "--set", "surface=true"]),
     ("noise_smoke_euler", ["run", "noise_smoke", "--frames", "3", "--set", "rate=3000",
                            "--set", "max_particles=300", "--set", "integrator=euler",
                            "--set", "surface=false"]),
