@@ -93,6 +93,17 @@ def _build_parser() -> argparse.ArgumentParser:
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
+
+    p_gallery = sub.add_parser("gallery", help="run every scene with its defaults and draw one "
+                               "still of each (the README's pictures)")
+    p_gallery.add_argument("scenes", nargs="*", metavar="SCENE",
+                           help="scenes to draw (default all)")
+    p_gallery.add_argument("--out", default="docs", metavar="DIR",
+                           help="folder of the stills SCENE.png (default docs)")
+    p_gallery.add_argument("--runs", default=str(Path("outputs") / "gallery"), metavar="DIR",
+                           help="folder of the scenes' runs, reused when complete with the "
+                                "defaults (default outputs/gallery)")
+    p_gallery.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     return parser
 
 
@@ -511,13 +522,47 @@ def _cmd_info(args) -> int:
     return 0
 
 
+# -- gallery ------------------------------------------------------------------------------------
+def _cmd_gallery(args) -> int:
+    from .gallery import gallery_still, run_is_current
+    from .render import RenderUnavailableError
+    from .scene import available_scenes, load_scene
+
+    installed = list(available_scenes())
+    names = args.scenes or installed
+    unknown = [n for n in names if n not in installed]
+    if unknown:
+        raise UsageError(f"unknown scene {unknown[0]!r}; scenes: {', '.join(installed)}")
+    out, runs = Path(args.out), Path(args.runs)
+    _check_writable(out)
+    _check_writable(runs)
+    quiet = ["-q"] if args.quiet else []
+    for name in names:
+        scene = load_scene(name)
+        directory = runs / name
+        if run_is_current(directory, scene):
+            print(f"{name}: reusing the run in {directory}")
+        else:
+            code = main(["run", name, "--out", str(directory), "--no-render", *quiet])
+            if code != 0:
+                print(f"blobflow: gallery stopped: the run of {name!r} failed", file=sys.stderr)
+                return code
+        try:
+            path, index, reason = gallery_still(directory, out / f"{name}.png")
+        except RenderUnavailableError as exc:
+            raise UsageError(str(exc)) from None
+        print(f"{name}: wrote {path} (frame {index}, {reason})")
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point of the ``blobflow`` console script; returns the exit code."""
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
-                   "surface": _cmd_surface, "info": _cmd_info}[args.command]
+                   "surface": _cmd_surface, "info": _cmd_info,
+                   "gallery": _cmd_gallery}[args.command]
         return command(args)
     except UsageError as exc:
         print(f"blobflow: error: {exc}", file=sys.stderr)

@@ -1,7 +1,9 @@
 """What the renders show: shadows under resting bodies, the tank's edges, smoke as soft sprites,
-robust framing and the most interesting frame."""
+robust framing, the most interesting frame, and the gallery."""
 
+import json
 import math
+from pathlib import Path
 
 import imageio.v2 as imageio
 import numpy as np
@@ -13,12 +15,13 @@ from pipeline.cli import main
 from pipeline.colliders import COLLIDERS_FILE, Collider, write_colliders
 from pipeline.render import frame_at_time, interesting_frame, turntable
 from pipeline.renderer import Renderer
-from pipeline.scene import load_scene
+from pipeline.scene import available_scenes, load_scene
 from pipeline.series import SeriesWriter
 
 pytestmark = pytest.mark.render
 
 SIZE = (240, 180)
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _write(path, frames, dt=0.1):
@@ -212,3 +215,28 @@ def test_cli_render_time_mistakes(tmp_path, capsys, argv, message):
     err = capsys.readouterr().err
     assert code == 2 and message in err and err.count("\n") == 1
     assert not (tmp_path / "x.gif").exists()
+
+
+def test_gallery_runs_a_scene_with_its_defaults_and_reuses_the_run(tmp_path, capsys):
+    out, runs = tmp_path / "docs", tmp_path / "runs"
+    assert main(["gallery", "bouncing", "--out", str(out), "--runs", str(runs), "-q"]) == 0
+    image = imageio.imread(out / "bouncing.png")
+    assert image.shape[:2] == (480, 640) and image.std() > 10
+    record = json.loads((runs / "bouncing" / "scene.json").read_text())
+    assert record["parameters"] == json.loads(json.dumps(load_scene("bouncing").defaults()))
+    assert (runs / "bouncing" / COLLIDERS_FILE).is_file()
+    capsys.readouterr()
+    before = (runs / "bouncing" / "particles.pvd").stat().st_mtime_ns
+    assert main(["gallery", "bouncing", "--out", str(out), "--runs", str(runs), "-q"]) == 0
+    assert "reusing" in capsys.readouterr().out
+    assert (runs / "bouncing" / "particles.pvd").stat().st_mtime_ns == before
+    np.testing.assert_array_equal(imageio.imread(out / "bouncing.png"), image)
+    assert main(["gallery", "nope", "--out", str(out), "--runs", str(runs)]) == 2
+
+
+def test_readme_shows_the_gallery_image_of_every_scene():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    table = readme.split("## Scenes", 1)[1].split("\n## ", 1)[0]
+    for name in available_scenes():
+        assert (ROOT / "docs" / f"{name}.png").is_file(), f"run `blobflow gallery {name}`"
+        assert f"docs/{name}.png" in table, f"show docs/{name}.png in the README's scene table"
