@@ -34,6 +34,12 @@ vocabulary, plus ``"rk2"`` and ``"rk4"``)
 * :func:`implicit_advection` -- the first-order form for particles advected by a velocity field
   ``dx/dt = v(x)``: ``(I - h dv/dx) dx = h v(x^n)`` (one linearised backward Euler step).
 
+Contacts (``contact=``, a :class:`filters.elastic.contact_model.ContactModel` or any object
+with its methods) are part of every scheme's step, not a pass after it: each step minimises its
+own part plus the contact terms -- barrier, lagged Coulomb friction, normal damping -- over a
+feasibility-filtered line search (:mod:`filters.contact_solve`), so that any
+:class:`~filters.linalg.ImplicitSystem` gets contacts that can only remove energy.
+
 Earlier names (``"forward"``, ``"symplectic"``, ``"linearized"``, ``"newton"``) raise a
 ``ValueError`` naming the current one.
 """
@@ -46,6 +52,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from .contact_solve import (apply_explicit_contact, feasible_start, linearized_contact,
+                            step_kinetic_energy)
 from .linalg.cg import vdot
 from .linalg.dense3 import implicit_step3
 from .linalg.solver import SOLVERS, LinearSolver
@@ -83,6 +91,9 @@ class StepInfo:
         Final Newton step size ``max |d| / h`` (m/s) -- or, when :func:`backward_euler` stopped
         on quadratic convergence, the estimate ``|d_k|^2 / |d_{k-1}|`` of the next one --, or 0
         for explicit schemes.
+    velocity_scale : float
+        1, or the factor :func:`backward_euler` with contacts applied to the velocities of a
+        step that ``max_newton`` iterations left gaining energy.
     """
 
     newton_iterations: int = 0
@@ -90,6 +101,7 @@ class StepInfo:
     direct_solves: int = 0
     line_search_halvings: int = 0
     residual: float = 0.0
+    velocity_scale: float = 1.0
 
 
 #: Loosest relative PCG tolerance of a Newton solve as a multiple of ``newton_tol / |d_prev|``
@@ -137,7 +149,7 @@ def _incremental_potential_parts(dx, v, masses, h):
 # ---------------------------------------------------------------------------------------------
 # Explicit schemes
 # ---------------------------------------------------------------------------------------------
-def euler(system, state, h):
+def euler(system, state, h, *, contact=None, contact_tol=1e-4):
     """Forward (explicit) Euler: ``x += h v; v += h f(x, v) / m``, in place.
 
     Parameters
@@ -148,6 +160,12 @@ def euler(system, state, h):
         ``positions`` (m) and ``velocities`` (m/s), (N, 3), advanced in place.
     h : float
         Time step (s), > 0.
+    contact : contact model, optional
+        Contacts and friction (:class:`filters.elastic.contact_model.ContactModel`), solved
+        after the explicit update as the smallest momentum change that satisfies them
+        (:func:`filters.contact_solve.explicit_contact`).
+    contact_tol : float
+        Newton tolerance (m/s) of that contact solve, > 0.
 
     Returns
     -------
@@ -156,25 +174,39 @@ def euler(system, state, h):
     h = _check_h(h)
     x, v = state.positions, state.velocities
     f = system.forces(x, v)
+    x0 = x.copy() if contact is not None else None
     x += h * v
+    dx_free = h * v if contact is not None else None
     v += h * f * system.inv_mass[:, None]
-    return StepInfo()
+    if contact is None:
+        return StepInfo()
+    contact.begin_step(x0, h)
+    return StepInfo(newton_iterations=apply_explicit_contact(system, state, x0, dx_free, h,
+                                                            contact, contact_tol))
 
 
-def symplectic_euler(system, state, h):
+def symplectic_euler(system, state, h, *, contact=None, contact_tol=1e-4):
     """Symplectic (semi-implicit) Euler: ``v += h f(x, v) / m; x += h v``, in place, by the
-    system's :meth:`~filters.linalg.ImplicitSystem.symplectic_step`. Arguments as in
-    :func:`euler`."""
+    system's :meth:`~filters.linalg.ImplicitSystem.symplectic_step`; ``contact`` and the other
+    arguments as in :func:`euler`."""
     h = _check_h(h)
+    if contact is None:
+        system.symplectic_step(state.positions, state.velocities, h)
+        return StepInfo()
+    x0 = state.positions.copy()
     system.symplectic_step(state.positions, state.velocities, h)
-    return StepInfo()
+    contact.begin_step(x0, h)
+    dx_free = h * state.velocities
+    return StepInfo(newton_iterations=apply_explicit_contact(system, state, x0, dx_free, h,
+                                                            contact, contact_tol))
 
 
 # ---------------------------------------------------------------------------------------------
 # Implicit schemes
 # ---------------------------------------------------------------------------------------------
 def linearized_backward_euler(system, state, h, *, solver="auto", tol=1e-6, max_iter=1000,
-                              preconditioner=None, omega=None):
+                              preconditioner=None, omega=None, contact=None, contact_tol=1e-3,
+                              max_contact_iterations=20):
     """One Newton step of backward Euler (Baraff & Witkin 1998), in place.
 
     Solves ``(M/h^2 + C/h + K) dv = (f0 - h K v0) / h`` with ``K = -df/dx`` (made definite) and
@@ -197,6 +229,16 @@ def linearized_backward_euler(system, state, h, *, solver="auto", tol=1e-6, max_
     omega : float, optional
         Over-relaxation factor of ``"ssor"`` (default :data:`filters.linalg.DEFAULT_OMEGA`);
         only with a solver given by name.
+    contact : contact model, optional
+        Contacts and friction (:class:`filters.elastic.contact_model.ContactModel`): the
+        step then minimises the quadratic model of the incremental potential plus the contact
+        terms (:func:`filters.contact_solve.linearized_contact`): the elastic forces are
+        linearised once, the contacts solved exactly, by Newton iterations whose directions
+        reuse the matrix at ``x`` (one solve when nothing touches).
+    contact_tol : float
+        Newton tolerance (m/s) of that minimisation, > 0.
+    max_contact_iterations : int
+        Its iteration limit, >= 1.
 
     Returns
     -------
@@ -206,6 +248,9 @@ def linearized_backward_euler(system, state, h, *, solver="auto", tol=1e-6, max_
     linear = _linear_solver(solver, preconditioner, omega)
     x, v = state.positions, state.velocities
     n = x.shape[0]
+    if contact is not None:
+        return _linearized_with_contact(system, state, h, linear, tol, max_iter, contact,
+                                        contact_tol, max_contact_iterations)
     f0 = system.forces(x, v)
     mat = linear.operator(system, x, x, h)  # matrix-free when it can be
     # K v0 = -(df/dx) v0 = H v0 - (M/h^2 + C/h) v0 on free particles; compute it from the matrix.
@@ -223,9 +268,25 @@ def linearized_backward_euler(system, state, h, *, solver="auto", tol=1e-6, max_
     return StepInfo(newton_iterations=1, linear_iterations=it, direct_solves=int(direct))
 
 
+def _linearized_with_contact(system, state, h, linear, tol, max_iter, contact, contact_tol,
+                             max_contact_iterations):
+    """:func:`linearized_backward_euler` with contacts, in place."""
+    check_range("contact_tol", contact_tol, 0.0, math.inf, low_inclusive=False)
+    check_int("max_contact_iterations", max_contact_iterations, 1)
+    x, v = state.positions, state.velocities
+    dx, it, lin_it, direct = linearized_contact(
+        system, linear, x, v, h, contact, tol=contact_tol, max_iter=max_contact_iterations,
+        lin_tol=tol, lin_max_iter=max_iter, warm=_warm(state, "lbe_contact_warm", v.size))
+    _store_warm(state, "lbe_contact_warm", dx - h * np.where(system.pinned[:, None], 0.0, v))
+    x += dx
+    v[:] = dx / h
+    v[system.pinned] = 0.0
+    return StepInfo(newton_iterations=it, linear_iterations=lin_it, direct_solves=direct)
+
+
 def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newton=20,
                    tol=1e-3, max_iter=1000, callback=None, preconditioner=None,
-                   forcing=0.1, extrapolate=False, omega=None):
+                   forcing=0.1, extrapolate=False, omega=None, contact=None):
     """Backward Euler by Newton iterations with a line search on the incremental potential.
 
     Minimises ``E(dx) = |dx - h v|_M^2/(2h^2) + U(x + dx) + dx^T C dx/(2h)`` over the position
@@ -244,7 +305,10 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         :class:`LinearSolver` object keeps its scratch arrays between steps.
     newton_tol : float
         Stop when ``max |d| / h`` (m/s) falls below this (1 mm/s by default: well below what
-        an animation shows, and 2x fewer Newton iterations than 1e-5 on the benchmark cloth),
+        an animation shows, and 2x fewer Newton iterations than 1e-5 on the benchmark cloth)
+        -- with contacts, when also the Newton decrement ``-g . d`` is below the kinetic
+        energy ``M newton_tol^2`` of the whole system moving at that speed (J), since a stiff
+        barrier can hold much energy in a small step --,
         or when two full steps converge quadratically (``|d_k| < |d_{k-1}| / 4``) and the
         next step, estimated as ``|d_k|^2 / |d_{k-1}|``, would be below ``newton_tol / 2``
         (3.17 -> 2.75 Newton iterations per step on the 64x64 benchmark cloth).
@@ -279,6 +343,14 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     omega : float, optional
         Over-relaxation factor of ``"ssor"``, in (0, 2) (default
         :data:`filters.linalg.DEFAULT_OMEGA`; only with a solver given by name).
+    contact : contact model, optional
+        Contacts and friction (:class:`filters.elastic.contact_model.ContactModel`): their
+        barrier, friction and normal-damping terms join ``E`` and their Hessian blocks the
+        Newton matrix, and the line search never lets a contact point cross a collider, so
+        that the step that lowers ``E`` also satisfies the contacts.  Newton then also stops
+        only on a step that gains no energy; if ``max_newton`` iterations leave one that
+        does, its velocities are scaled back to the energy of the start of the step
+        (:attr:`StepInfo.velocity_scale`).
 
     Returns
     -------
@@ -302,6 +374,8 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         e = _incremental_potential_parts(dx, v_free, m, h)
         e += system.potential_energy(x0 + dx)
         e -= 0.5 / h * vdot(dx, system.damping_forces(x0, dx))
+        if contact is not None:
+            e += contact.value(x0, dx)
         return e
 
     def gradient(dx):
@@ -313,17 +387,44 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
 
     v_free = v.copy()
     v_free[pinned] = 0.0
-    # Start from the better of the inertial guess h v and the free-fall guess h v + h^2 g.
-    dx = h * v_free
+    blocks = None
+    if contact is not None:
+        contact.begin_step(x0, h)
+        blocks = np.zeros((n, 3, 3))
+        # the kinetic energy of the whole system moving at newton_tol, twice
+        decrement_tol = float(m[free].sum()) * newton_tol * newton_tol
+    # Start from the better of the inertial guess h v and the free-fall guess h v + h^2 g
+    # (with contacts: each brought back, particle by particle, to where no contact point crosses
+    # a collider, and standing still as a third guess).
+    def start(guess):
+        return guess if contact is None else feasible_start(contact, x0, guess, pinned)
+
+    dx = start(h * v_free)
     e = potential(dx)
-    trial = dx + (h * h) * np.where(free[:, None], system.gravity[None, :], 0.0)
+    trial = start(h * v_free + (h * h) * np.where(free[:, None], system.gravity[None, :], 0.0))
     e_trial = potential(trial)
     if e_trial < e:
         dx, e = trial, e_trial
+    if contact is not None:
+        # standing still: E(0) is the energy at the start of the step
+        trial = np.zeros_like(dx)
+        e_before = e_trial = potential(trial)
+        if e_trial < e:
+            dx, e = trial, e_trial
+
+        def total_energy(dx):
+            """Kinetic + potential + contact energy (J) after the step ``dx``."""
+            x1 = x0 + dx
+            return (step_kinetic_energy(dx, m, h) + system.potential_energy(x1)
+                    + contact.energy(x1))
+
+        def gains(dx):
+            return total_energy(dx) > e_before + decrement_tol
     dv_prev = _warm(state, "newton_dv", 3 * n) if extrapolate else None
     if dv_prev is not None:
         trial = h * (v_free + dv_prev.reshape(n, 3))
         trial[pinned] = 0.0
+        trial = start(trial)
         e_trial = potential(trial)
         if e_trial < e:
             dx, e = trial, e_trial
@@ -336,6 +437,9 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     full_before = False
     for it in range(max_newton):
         g = gradient(dx)
+        if contact is not None:
+            contact.derivatives(x0, dx, g, blocks)
+            g[pinned] = 0.0
         gnorm = math.sqrt(vdot(g, g))
         if forcing is not None and gnorm_prev is not None:
             # Eisenstat & Walker (1996), choice 2 (gamma = 0.9, alpha = 2) with safeguard
@@ -348,7 +452,8 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
                 # (Newton steps shrink, so |d_k| <= |d_{k-1}|): no tighter than that.
                 eta = max(eta, min(forcing, _STEP_FORCING * newton_tol / prev_step))
         gnorm_prev = gnorm
-        d, lin_it, direct = linear.solve(system, x0 + dx, x0, h, -g, warm, eta, max_iter)
+        d, lin_it, direct = linear.solve(system, x0 + dx, x0, h, -g, warm, eta, max_iter,
+                                         diagonal=blocks)
         info.linear_iterations += lin_it
         info.direct_solves += int(direct)
         info.newton_iterations = it + 1
@@ -364,9 +469,11 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         if slope >= 0.0:  # not a descent direction (inexact solve): steepest descent instead
             d = -g / (m[:, None] / (h * h))
             slope = vdot(g, d)
-        alpha = 1.0
+        # with contacts, the longest step that keeps every contact point outside (Li et al.
+        # 2020's filtered line search)
+        alpha = 1.0 if contact is None else contact.max_step(x0, dx, d)
         accepted = False
-        for _ in range(40):
+        for _ in range(40 if contact is None else 60):
             trial = dx + alpha * d
             e_trial = potential(trial)
             if e_trial <= e + 1e-4 * alpha * slope:
@@ -379,10 +486,16 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         dx, e = trial, e_trial
         if callback is not None:
             callback(it, step_norm * alpha, e)
-        if step_norm * alpha < newton_tol:
+        if contact is None:
+            if step_norm * alpha < newton_tol:
+                break
+        elif step_norm < newton_tol and -slope < decrement_tol and not gains(dx):
+            # converged: the full step is small, so is the Newton decrement g . H^-1 g (twice
+            # the decrease left to the minimum), and the step gains no energy
             break
         if alpha == 1.0 and full_before and step_norm < 0.25 * older_step and (
-                step_norm * step_norm / older_step < 0.5 * newton_tol):
+                step_norm * step_norm / older_step < 0.5 * newton_tol) and (
+                contact is None or not gains(dx)):
             # Quadratic convergence (two full steps, contraction < 1/4): the next step would be
             # ~ |d_k|^2 / |d_{k-1}|, well below newton_tol (Deuflhard 2004, "Newton methods
             # for nonlinear problems"): skip the solve that would only confirm it.
@@ -395,8 +508,19 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         dv = dx / h - v_free
         dv[pinned] = 0.0
         _store_warm(state, "newton_dv", dv)
+    scale = 1.0
+    if contact is not None and gains(dx):
+        # Newton stopped (max_newton) short of a minimiser that would not gain energy: keep
+        # the positions, take from the velocities what the step gained (the energy budget of
+        # Dinev, Liu & Kavan 2018, "Stabilizing integrators for real-time physics", TOG)
+        kinetic = step_kinetic_energy(dx, m, h)
+        budget = e_before - (total_energy(dx) - kinetic)
+        scale = math.sqrt(budget / kinetic) if budget > 0.0 and kinetic > 0.0 else 0.0
+        info.velocity_scale = scale
     x0 += dx
     v[:] = dx / h
+    if scale != 1.0:
+        v *= scale
     v[pinned] = 0.0
     return info
 

@@ -219,6 +219,8 @@ class Frame:
         vertices, where every point is its own vertex cell.
     cell_types : (C,) uint8 array, optional
         VTK cell type of every cell, for ``topology == "cells"``.
+    field_data : dict of str to ndarray
+        Arrays about the whole frame (an energy account), written as field data.
     """
 
     time: float
@@ -226,6 +228,7 @@ class Frame:
     point_data: dict
     connectivity: tuple | None = None
     cell_types: np.ndarray | None = None
+    field_data: dict = field(default_factory=dict)
 
 
 #: Most frames one run may have (a million frames is over nine hours at 30 fps).

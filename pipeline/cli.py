@@ -13,6 +13,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from . import cli_tools
+
 __all__ = ["main"]
 
 
@@ -21,26 +23,49 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
+    """One-line errors; every option's help shows its default; ``help_hook(parser)``, when
+    set, completes the help (scene defaults, kernel names) only when it is printed, so that
+    ordinary commands do not import the scenes or Numba to build it."""
+
+    help_hook = None
+
     def error(self, message):  # one line, not usage + message
         raise UsageError(message)
+
+    def format_help(self):
+        if self.help_hook is not None:
+            self.help_hook(self)
+        for action in self._actions:
+            default = action.default
+            if (action.help and action.help is not argparse.SUPPRESS and action.option_strings
+                    and default not in (None, False, [], argparse.SUPPRESS)
+                    and "default" not in action.help):
+                action.help += f" (default: {default})"
+        return super().format_help()
 
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="blobflow", description="Particle simulations and implicit surfaces as "
                      "VTK pipelines, written as ParaView-ready time series.")
+    parser.add_argument("--version", action="version", version=f"blobflow {_version()}",
+                        help="print blobflow's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
     p_list = sub.add_parser("list", help="list the installed scenes")
     p_list.add_argument("-v", "--verbose", action="store_true",
-                        help="also list every scene's parameters with defaults")
+                        help="also list every scene's parameters with defaults, types and "
+                             "descriptions")
 
     p_run = sub.add_parser("run", help="run a scene into an output folder")
     p_run.add_argument("scene", help="scene name (see `blobflow list`)")
     length = p_run.add_mutually_exclusive_group()
-    length.add_argument("--duration", type=float, metavar="S", help="simulated seconds")
-    length.add_argument("--frames", type=int, metavar="N", help="number of frames")
-    p_run.add_argument("--fps", type=float, metavar="F", help="frames per second")
+    length.add_argument("--duration", type=float, metavar="S",
+                        help="simulated seconds (default: the scene's, listed below)")
+    length.add_argument("--frames", type=int, metavar="N",
+                        help="number of frames instead of --duration")
+    p_run.add_argument("--fps", type=float, metavar="F",
+                       help="frames per second (default: the scene's, listed below)")
     p_run.add_argument("--out", metavar="DIR", help="output folder (default outputs/SCENE)")
     p_run.add_argument("--set", dest="assignments", action="append", default=[],
                        metavar="NAME=VALUE", help="override a scene parameter (repeatable)")
@@ -49,6 +74,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--no-render", action="store_true",
                        help="write the series only, no turntable GIF or movie")
     p_run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p_run.help_hook = cli_tools.scene_defaults_epilog
 
     p_render = sub.add_parser("render", help="render series offscreen: a time-lapse or a turntable")
     p_render.add_argument("series", nargs="+", help=".pvd or .series files drawn together")
@@ -81,30 +107,30 @@ def _build_parser() -> argparse.ArgumentParser:
                                 "wrote the particles (its scene.json), else 0.01")
     p_surface.add_argument("--cell-size", type=float, metavar="H",
                            help="voxel edge (m), default radius / 2")
-    p_surface.add_argument("--kernel", help="splatting kernel (default sph)")
+    p_surface.add_argument("--kernel", metavar="K", help="splatting kernel")
     p_surface.add_argument("--smooth-iterations", type=int, metavar="N",
-                           help="windowed-sinc iterations (default 30)")
+                           help="windowed-sinc iterations")
     p_surface.add_argument("--option", dest="options", action="append", default=[],
                            metavar="NAME=VALUE", help="further surface option (repeatable), as "
                                                       "in pipeline.surface.surface_stages")
     p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
     p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_cluster_options(p_surface)
+    p_surface.help_hook = cli_tools.surface_help
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
 
-    p_gallery = sub.add_parser("gallery", help="run every scene with its defaults and draw one "
-                               "still of each (the README's pictures)")
-    p_gallery.add_argument("scenes", nargs="*", metavar="SCENE",
-                           help="scenes to draw (default all)")
-    p_gallery.add_argument("--out", default="docs", metavar="DIR",
-                           help="folder of the stills SCENE.png (default docs)")
-    p_gallery.add_argument("--runs", default=str(Path("outputs") / "gallery"), metavar="DIR",
-                           help="folder of the scenes' runs, reused when complete with the "
-                                "defaults (default outputs/gallery)")
-    p_gallery.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    cli_tools.add_gallery_parser(sub)
+    cli_tools.add_export_parser(sub)
+    cli_tools.add_paraview_parser(sub)
     return parser
+
+
+def _version() -> str:
+    from .version import version
+
+    return version()
 
 
 def _add_cluster_options(parser) -> None:
@@ -259,6 +285,7 @@ def _cmd_list(args) -> int:
             continue
         print(f"{name:<{width}}  {scene.description}")
         if args.verbose:
+            print(f"    (default run: {scene.duration:g} s at {scene.fps:g} fps)")
             for p in scene.parameters.values():
                 print(f"    {p.name} = {p.default!r}  ({p.kind}) {p.doc}")
     return 0
@@ -334,6 +361,11 @@ def _remove_previous_run(out: Path, record: dict) -> None:
             path.unlink(missing_ok=True)
         if (out / name).is_dir():
             shutil.rmtree(out / name)
+    _remove_renders(out)
+
+
+def _remove_renders(out: Path) -> None:
+    """Delete the renders (:data:`_RUN_FILES`) a previous run wrote in ``out``."""
     for file_name in _RUN_FILES:
         (out / file_name).unlink(missing_ok=True)
 
@@ -403,6 +435,8 @@ def _cmd_run(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if saved is not None and not args.resume:
         _remove_previous_run(out, saved)
+    elif saved is not None:  # resumed: the renders of the shorter run no longer show it
+        _remove_renders(out)
     record = _scene_record(scene, parameters, fps, flow.written_outputs())
     _write_text_atomic(out / "scene.json", json.dumps(record, indent=1, default=list) + "\n")
     try:
@@ -484,6 +518,16 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _usage_errors(command):
+    """``command`` with its ValueError reported as a usage error (one line, exit code 2)."""
+    def run(args):
+        try:
+            return command(args)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+    return run
+
+
 # -- info ---------------------------------------------------------------------------------------
 def _cmd_info(args) -> int:
     import numpy as np
@@ -522,48 +566,22 @@ def _cmd_info(args) -> int:
     return 0
 
 
-# -- gallery ------------------------------------------------------------------------------------
-def _cmd_gallery(args) -> int:
-    from .gallery import gallery_still, run_is_current
-    from .render import RenderUnavailableError
-    from .scene import available_scenes, load_scene
-
-    installed = list(available_scenes())
-    names = args.scenes or installed
-    unknown = [n for n in names if n not in installed]
-    if unknown:
-        raise UsageError(f"unknown scene {unknown[0]!r}; scenes: {', '.join(installed)}")
-    out, runs = Path(args.out), Path(args.runs)
-    _check_writable(out)
-    _check_writable(runs)
-    quiet = ["-q"] if args.quiet else []
-    for name in names:
-        scene = load_scene(name)
-        directory = runs / name
-        if run_is_current(directory, scene):
-            print(f"{name}: reusing the run in {directory}")
-        else:
-            code = main(["run", name, "--out", str(directory), "--no-render", *quiet])
-            if code != 0:
-                print(f"blobflow: gallery stopped: the run of {name!r} failed", file=sys.stderr)
-                return code
-        try:
-            path, index, reason = gallery_still(directory, out / f"{name}.png")
-        except RenderUnavailableError as exc:
-            raise UsageError(str(exc)) from None
-        print(f"{name}: wrote {path} (frame {index}, {reason})")
-    return 0
-
-
 def main(argv=None) -> int:
     """Entry point of the ``blobflow`` console script; returns the exit code."""
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
+        if args.command in ("run", "surface", "render"):
+            cli_tools.announce_compilation()
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
                    "surface": _cmd_surface, "info": _cmd_info,
-                   "gallery": _cmd_gallery}[args.command]
+                   "gallery": _usage_errors(lambda a: cli_tools.gallery_command(
+                       a, run=main, check_writable=_check_writable)),
+                   "export": _usage_errors(cli_tools.export_command),
+                   "paraview": _usage_errors(cli_tools.paraview_command)}[args.command]
         return command(args)
+    except SystemExit as exc:  # --help, --version
+        return exc.code if isinstance(exc.code, int) else 0
     except UsageError as exc:
         print(f"blobflow: error: {exc}", file=sys.stderr)
         return 2

@@ -13,7 +13,8 @@ from filters.validation import check_bool
 from .algorithm import connect_chain, update
 from .colliders import COLLIDERS_FILE, Collider, write_colliders
 from .convert import has_state, state_from_dataset
-from .series import SeriesWriter, export_xdmf, read_frame
+from .series import SeriesWriter, read_frame
+from .xdmf import export_xdmf
 from .sources import SimulationSource
 
 __all__ = ["Flow", "Stage"]
@@ -88,7 +89,8 @@ class Flow:
         write : bool
             Write this output as a series when the flow runs.
         xdmf : bool
-            Also export the series as XDMF through meshio at the end (fixed topology only).
+            Also export the series as XDMF + HDF5 at the end (fixed topology only,
+            :func:`pipeline.xdmf.export_xdmf`).
 
         Returns
         -------
@@ -143,7 +145,31 @@ class Flow:
         return collider
 
     def output(self, name: str, time: float):
-        """Update output ``name`` at ``time`` and return a copy of its data object."""
+        """Output ``name`` at ``time`` (s) as a PyVista dataset.
+
+        Parameters
+        ----------
+        name : str
+            One of the flow's outputs.
+        time : float
+            Time (s); the simulation steps (or restores a cached state) to reach it.
+
+        Returns
+        -------
+        pyvista.DataSet
+            A copy (``pyvista.PolyData``, ``pyvista.UnstructuredGrid``, ...), which later
+            updates of the flow leave alone.
+        """
+        import pyvista as pv
+
+        return pv.wrap(self._output(name, time))
+
+    def frames(self, name: str):
+        """Yield ``(time, dataset)`` for every frame time of the flow (:meth:`output`)."""
+        for t in self.times:
+            yield float(t), self.output(name, float(t))
+
+    def _output(self, name: str, time: float):
         if name not in self.stages:
             raise ValueError(f"name must be one of {sorted(self.stages)}, got {name!r}")
         stage = self.stages[name]
@@ -252,7 +278,7 @@ class Flow:
             for index in range(start, len(times)):
                 t = float(times[index])
                 for stage in written:
-                    writers[stage.name].write(self.output(stage.name, t), t)
+                    writers[stage.name].write(self._output(stage.name, t), t)
                 bar.update(1)
                 if on_frame is not None:
                     on_frame(index, t)

@@ -61,6 +61,11 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
     for name, values in frame.point_data.items():
         if np.issubdtype(np.asarray(values).dtype, np.floating) and not np.isfinite(values).all():
             raise ValueError(f"frame at t = {frame.time} has non-finite values in {name!r}")
+    for name, values in frame.field_data.items():
+        if name == TIME_ARRAY or name.startswith(STATE_PREFIX):
+            raise ValueError(f"frame field data may not be named {name!r} (reserved)")
+        if np.issubdtype(np.asarray(values).dtype, np.floating) and not np.isfinite(values).all():
+            raise ValueError(f"frame at t = {frame.time} has non-finite field data {name!r}")
     missing = names - set(frame.point_data)
     if missing:
         raise ValueError(f"frame is missing the point arrays {sorted(missing)} its OutputSpec lists")
@@ -82,7 +87,8 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     Returns
     -------
     vtkPolyData or vtkUnstructuredGrid
-        With the point arrays named as in ``spec`` and a ``TimeValue`` field array.
+        With the point arrays named as in ``spec``, the frame's field arrays and a
+        ``TimeValue`` field array.
     """
     dataset = dataset or spec.dataset
     if dataset not in ("polydata", "unstructured"):
@@ -123,6 +129,8 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     order += [name for name in frame.point_data if name not in order]
     for name in order:
         output.GetPointData().AddArray(_to_vtk_array(name, frame.point_data[name]))
+    for name, values in frame.field_data.items():
+        output.GetFieldData().AddArray(_to_vtk_array(name, np.asarray(values)))
     set_time(output, frame.time)
     return output
 

@@ -26,7 +26,8 @@ ENTRY_POINT_GROUP = "blobflow.scenes"
 
 
 def _parameter_docs(func) -> dict[str, str]:
-    """First description line of each parameter in a numpydoc ``Parameters`` section."""
+    """The description of each parameter in a numpydoc ``Parameters`` section: all its lines
+    joined into one, with the reST markup of literals (````x````) removed."""
     doc = inspect.getdoc(func) or ""
     match = re.search(r"Parameters\n-+\n(.*?)(?:\n\n[A-Z][a-z]+\n-+\n|\Z)", doc, re.S)
     docs: dict[str, str] = {}
@@ -38,9 +39,9 @@ def _parameter_docs(func) -> dict[str, str]:
         if head and not line.startswith(" "):
             current = head.group(1)
             docs[current] = ""
-        elif current and line.strip() and not docs[current]:
-            docs[current] = line.strip()
-    return docs
+        elif current and line.strip():
+            docs[current] = f"{docs[current]} {line.strip()}".strip()
+    return {name: " ".join(text.replace("``", "").split()) for name, text in docs.items()}
 
 
 class Scene:

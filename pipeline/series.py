@@ -6,6 +6,9 @@ Layout of a series named ``particles`` in ``outputs/run/``::
     outputs/run/particles.vtp.series     the same list in ParaView's JSON file-series format
     outputs/run/particles/particles_000000.vtp, particles_000001.vtp, ...
 
+Fixed-topology series (cloth, jello, hair) can also be exported as XDMF + HDF5
+(:func:`export_xdmf`, :mod:`pipeline.xdmf`).
+
 Every frame is written to a temporary file and renamed into place, and both collection files are
 rewritten (atomically) after every frame, so a run interrupted at any point leaves a valid, shorter
 series.  XML files are written appended, raw (not base64), zlib-compressed, with UInt64 headers.
@@ -34,6 +37,7 @@ from vtkmodules.vtkIOXML import (
 )
 
 from .algorithm import vtk_messages
+from .xdmf import export_xdmf
 
 __all__ = [
     "SeriesWriter",
@@ -457,115 +461,3 @@ def read_series(path):
     entries = read_collection(path)
     datasets = [pv.wrap(read_frame(path.parent / name)) for _, name in entries]
     return np.array([t for t, _ in entries], dtype=np.float64), datasets
-
-
-_MESHIO_CELL_TYPES = {1: "vertex", 3: "line", 5: "triangle", 9: "quad", 10: "tetra",
-                      12: "hexahedron", 13: "wedge", 14: "pyramid"}
-
-
-def _csr(cell_array):
-    offsets = numpy_support.vtk_to_numpy(cell_array.GetOffsetsArray()).astype(np.int64)
-    indices = numpy_support.vtk_to_numpy(cell_array.GetConnectivityArray()).astype(np.int64)
-    return offsets, indices
-
-
-def _polyline_segments(offsets, indices):
-    """Split polylines (CSR) into 2-point segments, in order: XDMF/meshio have no polylines."""
-    if len(indices) < 2:
-        return np.zeros((0, 2), dtype=np.int64)
-    starts = np.arange(len(indices) - 1)
-    inner = np.ones(len(indices) - 1, dtype=bool)
-    inner[offsets[1:-1] - 1] = False  # the last point of a cell does not start a segment
-    starts = starts[inner]
-    return np.column_stack([indices[starts], indices[starts + 1]])
-
-
-def _meshio_cells(mesh):
-    import pyvista as pv
-
-    if isinstance(mesh, pv.PolyData):
-        cells = []
-        verts = _csr(mesh.GetVerts())
-        if len(verts[1]):
-            cells.append(("vertex", verts[1].reshape(-1, 1)))
-        lines = _csr(mesh.GetLines())
-        if len(lines[1]):
-            cells.append(("line", _polyline_segments(*lines)))
-        offsets, indices = _csr(mesh.GetPolys())
-        sizes = np.diff(offsets)
-        for size, kind in ((3, "triangle"), (4, "quad")):
-            rows = np.flatnonzero(sizes == size)
-            if len(rows):
-                cells.append((kind, indices[offsets[rows][:, None] + np.arange(size)]))
-        if np.any((sizes != 3) & (sizes != 4)):
-            raise ValueError("only triangles and quads can be exported to XDMF")
-        return cells
-    cells = []
-    for vtk_type, block in sorted(mesh.cells_dict.items()):
-        if int(vtk_type) not in _MESHIO_CELL_TYPES:
-            raise ValueError(f"VTK cell type {vtk_type} has no XDMF equivalent in this exporter")
-        cells.append((_MESHIO_CELL_TYPES[int(vtk_type)], np.asarray(block, dtype=np.int64)))
-    return cells
-
-
-def export_xdmf(series_path, xdmf_path=None) -> Path:
-    """Export a fixed-topology series as XDMF (with HDF5 heavy data) through meshio.
-
-    meshio's XDMF time series keeps one mesh for all steps, so the first frame's points are the
-    mesh and every step carries a point array ``displacement`` (points minus first points) beside
-    the series' own point arrays; in ParaView apply *Warp By Vector* on ``displacement`` to see
-    the motion.  Use it for cloth, jello and hair, whose topology never changes.
-
-    Parameters
-    ----------
-    series_path : str or Path
-        A ``.pvd`` or ``.series`` collection.
-    xdmf_path : str or Path, optional
-        Output file; the collection's name with ``.xdmf`` when omitted.
-
-    Raises
-    ------
-    ValueError
-        If the topology (point count or cells) changes between frames.
-    """
-    import meshio
-
-    series_path = Path(series_path)
-    xdmf_path = Path(xdmf_path) if xdmf_path else series_path.with_suffix(".xdmf")
-    times, meshes = read_series(series_path)
-    if not meshes:
-        raise ValueError(f"{series_path} has no frames to export")
-    first = meshes[0]
-    cells = _meshio_cells(first)
-    for t, mesh in zip(times, meshes):
-        same = mesh.n_points == first.n_points and all(
-            kind == k2 and np.array_equal(block, b2)
-            for (kind, block), (k2, b2) in zip(cells, _meshio_cells(mesh))
-        )
-        if not same:
-            raise ValueError(
-                f"{series_path.name} changes topology at t = {t}; XDMF export needs a fixed mesh"
-            )
-    rest = np.asarray(first.points, dtype=np.float64)
-    folder = xdmf_path.parent.resolve()
-    tmp_name = f".{xdmf_path.stem}.tmp"
-    # meshio writes its HDF5 file next to the *working directory* (stem + ".h5"), so write from
-    # inside the target folder, then rename both files into place.
-    previous = os.getcwd()
-    os.chdir(folder)
-    try:
-        with meshio.xdmf.TimeSeriesWriter(tmp_name + ".xdmf") as writer:
-            writer.write_points_cells(rest, cells)
-            for t, mesh in zip(times, meshes):
-                data = {"displacement": np.asarray(mesh.points, dtype=np.float64) - rest}
-                for name in mesh.point_data.keys():
-                    data[name] = np.asarray(mesh.point_data[name])
-                writer.write_data(float(t), point_data=data)
-    finally:
-        os.chdir(previous)
-    h5_final = xdmf_path.with_suffix(".h5")
-    os.replace(folder / (tmp_name + ".h5"), folder / h5_final.name)
-    text = (folder / (tmp_name + ".xdmf")).read_text(encoding="utf-8")
-    _atomic_write_text(folder / xdmf_path.name, text.replace(tmp_name + ".h5", h5_final.name))
-    (folder / (tmp_name + ".xdmf")).unlink()
-    return xdmf_path

@@ -20,13 +20,14 @@ them). Stages that need the particles read them on their second input port
 ``InterpolateAttributes`` (mesh, particles)
     Particle arrays (``velocity``, ...) carried to the vertices with the splatting kernel
     (Shepard weights, :mod:`filters.surface.attributes`).
-``Smooth``
+``Smooth`` (:mod:`pipeline.mesh_stages`)
     vtkWindowedSincPolyDataFilter (Taubin, Zhang & Golub 1996), whose low-pass filter does not
     shrink the surface the way Laplacian smoothing does.
 ``Normals``
     vtkPolyDataNormals without splitting (the mesh stays watertight).
 
-:func:`surface_stages` builds the chain from one set of options whose defaults,
+:func:`surface_stages` builds the chain, and :func:`reconstruct` runs it on one point cloud, from
+one set of options whose defaults,
 :data:`pipeline.surface_options.SURFACE_DEFAULTS`, are the liquid scenes' surface and
 ``blobflow surface``'s (:mod:`pipeline.surface_options`).
 """
@@ -37,9 +38,9 @@ import math
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkImageData, vtkPartitionedDataSet,
+from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageData,
+                                           vtkPartitionedDataSet,
                                            vtkPointSet, vtkPolyData)
-from vtkmodules.vtkFiltersCore import vtkPolyDataNormals, vtkWindowedSincPolyDataFilter
 
 from filters.geometry import Shape
 from filters.kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
@@ -53,8 +54,9 @@ from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_s
                                    splat_sparse_anisotropic)
 from filters.validation import check_bool, check_choice, check_int, check_range
 
-from .algorithm import Algorithm, ParticleStage
+from .algorithm import Algorithm, ParticleStage, run_chain
 from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
+from .mesh_stages import Normals, Smooth
 from .surface_options import SURFACE_DEFAULTS
 
 __all__ = [
@@ -65,6 +67,8 @@ __all__ = [
     "Smooth",
     "Normals",
     "surface_stages",
+    "surface_option_names",
+    "reconstruct",
 ]
 
 
@@ -420,74 +424,6 @@ class InterpolateAttributes(ParticleStage):
         return 1
 
 
-class _MeshFilter(Algorithm):
-    """A vtkPolyData -> vtkPolyData stage wrapping a VTK filter; a mesh without triangles (or a
-    stage switched off) passes through."""
-
-    def __init__(self):
-        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
-                           outputType="vtkPolyData")
-
-    def _filter(self):  # pragma: no cover - abstract
-        """The configured VTK filter, or None to pass the mesh through."""
-        raise NotImplementedError
-
-    def RequestData(self, request, inInfo, outInfo):
-        inp = vtkPolyData.GetData(inInfo[0], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        f = self._filter() if inp.GetNumberOfPolys() else None
-        if f is None:
-            out.ShallowCopy(inp)
-            return 1
-        f.SetInputData(inp)
-        f.Update()
-        out.ShallowCopy(f.GetOutput())
-        return 1
-
-
-class Smooth(_MeshFilter):
-    """Windowed-sinc smoothing (Taubin, Zhang & Golub 1996) that keeps the enclosed volume.
-
-    Parameters
-    ----------
-    iterations : int
-        Filter degree (number of iterations), in [0, 1000]; 0 passes the mesh through.
-    pass_band : float
-        In (0, 2); lower smooths more. ``(100, 0.001)`` removes the particle-scale bumps of a
-        lattice-filled ball (area within 1 % of the sphere's) while moving its enclosed volume
-        by less than 0.1 %.
-    """
-
-    def __init__(self, iterations: int = 100, pass_band: float = 0.001):
-        self.iterations = check_int("iterations", iterations, 0, 1000)
-        self.pass_band = check_range("pass_band", pass_band, 0.0, 2.0, low_inclusive=False)
-        _MeshFilter.__init__(self)
-
-    def _filter(self):
-        if self.iterations == 0:
-            return None
-        f = vtkWindowedSincPolyDataFilter()
-        f.SetNumberOfIterations(self.iterations)
-        f.SetPassBand(self.pass_band)
-        f.NormalizeCoordinatesOn()
-        f.BoundarySmoothingOff()
-        f.FeatureEdgeSmoothingOff()
-        f.NonManifoldSmoothingOn()
-        return f
-
-
-class Normals(_MeshFilter):
-    """Point normals (vtkPolyDataNormals) without splitting sharp edges (stays watertight)."""
-
-    def _filter(self):
-        f = vtkPolyDataNormals()
-        f.SplittingOff()
-        f.ConsistencyOff()
-        f.AutoOrientNormalsOff()
-        f.ComputePointNormalsOn()
-        f.ComputeCellNormalsOff()
-        return f
-
 # --------------------------------------------------------------------------------------------
 # The chain
 # --------------------------------------------------------------------------------------------
@@ -564,4 +500,96 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
         stages.append(Normals())
     return stages
 
+
+def surface_option_names() -> tuple[str, ...]:
+    """Names of the keyword options :func:`surface_stages` and :func:`reconstruct` take."""
+    import inspect
+
+    chain = [p.name for p in inspect.signature(surface_stages).parameters.values()
+             if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    splat = [p.name for p in inspect.signature(MetaballSplat.__init__).parameters.values()
+             if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name not in chain]
+    return tuple(chain + splat)
+
+
+def _point_cloud(points_or_dataset):
+    """A vtkPointSet of the particles: a dataset as given, or points (N, 3) without cells."""
+    import pyvista as pv
+
+    from filters.validation import check_points
+
+    if isinstance(points_or_dataset, vtkPointSet):
+        return points_or_dataset
+    if isinstance(points_or_dataset, vtkDataObject):
+        if not isinstance(points_or_dataset, vtkDataSet):
+            raise TypeError(f"points_or_dataset must be points (N, 3) or a dataset, got a "
+                            f"{points_or_dataset.GetClassName()}")
+        data = pv.wrap(points_or_dataset)  # image data, rectilinear grids: their points
+        cloud = pv.PolyData(np.asarray(data.points, dtype=np.float64))
+        for name in data.point_data.keys():
+            cloud.point_data[name] = data.point_data[name]
+        return cloud
+    try:
+        points = check_points("points_or_dataset", points_or_dataset)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{exc} (or pass a PyVista/VTK point dataset)") from None
+    return pv.PolyData(np.ascontiguousarray(points, dtype=np.float64))
+
+
+def reconstruct(points_or_dataset, radius: float, **options):
+    """The surface of one point cloud: splat, contour, smooth (the :func:`surface_stages` chain).
+
+    One call for what a :class:`pipeline.Flow` does at every frame: the same stages with the
+    same options give the same surface, bit for bit. The accessor
+    ``cloud.blobflow.surface(radius=...)`` of any PyVista dataset (:mod:`pipeline.accessor`)
+    calls it.
+
+    Parameters
+    ----------
+    points_or_dataset : (N, 3) array_like or vtkPointSet / pyvista.DataSet
+        Particle positions (m), or a dataset whose points are the particles; its point arrays
+        named in ``attributes`` (default ``velocity``) are carried to the surface's vertices and
+        ``radius_array`` may name per-particle radii.
+    radius : float
+        Particle radius (m), > 0.
+    **options
+        Options of :func:`surface_stages` (``cell_size``, ``kernel``, ``anisotropic``,
+        ``feature_smoothing``, ``smooth_iterations``, ``pass_band``, ``normals``,
+        ``attributes``, ``support_r``, ``blobbiness``, ``radius_array``) and of
+        :class:`MetaballSplat` (``iso``, ``sparse``, ``max_bytes``, ``implicit``,
+        ``operation``, ``anisotropy``, ...); defaults
+        :data:`pipeline.surface_options.SURFACE_DEFAULTS`.
+
+    Returns
+    -------
+    pyvista.PolyData
+        The triangle surface (m), with point normals and the carried arrays unless switched
+        off; empty when there are no particles.
+
+    Raises
+    ------
+    TypeError
+        For an unknown option (the message lists the valid ones) or an input that is neither
+        points nor a point dataset.
+    ValueError
+        For an option out of its range (named, with the range), before any work starts.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> surface = reconstruct(np.random.default_rng(0).uniform(0, 0.05, (500, 3)),
+    ...                       radius=0.005)                                  # doctest: +SKIP
+    """
+    import pyvista as pv
+
+    names = surface_option_names()
+    unknown = sorted(set(options) - set(names))
+    if unknown:
+        raise TypeError(f"reconstruct() has no option {unknown[0]!r}; options: "
+                        f"{', '.join(n for n in names if n != 'radius')}")
+    if "radius" in options:
+        raise TypeError("reconstruct() got radius twice")
+    stages = surface_stages(radius, **options)  # validates every option before any work
+    cloud = _point_cloud(points_or_dataset)
+    return pv.wrap(run_chain(stages, cloud, what="the surface reconstruction"))
 

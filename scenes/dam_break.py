@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from filters.geometry import Box
 from filters.sph.scenarios import dam_break_liquid
-from filters.validation import check_choice
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
+from .liquid_solver import solver_options
 from .liquid_surface import add_liquid_surface
 
 SCENE_FPS = 30.0
@@ -24,7 +24,9 @@ SCENE_DURATION = 1.5  # s: collapse, run-up on the far wall, plunging wave, slos
 def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length: float = 0.4,
           depth: float = 0.1, tank_height: float = 0.3, spacing: float = 0.004,
           viscosity: float = 0.05, xsph: float = 0.0, surface_tension: float = 0.0,
-          solver: str = "dfsph", max_density_error: float = 0.001, cfl: float = 0.4, surface: bool = True, smooth_iterations: int = 30,
+          solver: str = "dfsph", max_density_error: float = 0.001,
+          max_iterations: int = 100, cfl: float = 0.4, max_dt: float = 0.005,
+          speed_of_sound: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
     """Build the dam-break flow (31,250 fluid particles with the defaults, 25 across the column).
 
@@ -54,12 +56,20 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         velocity CFL, implicit viscosity) or weakly compressible SPH (Tait equation of state).
     max_density_error : float
         DFSPH tolerance of the mean compression, in [1e-6, 0.1] (0.001 = 0.1 %).
+    max_iterations : int
+        DFSPH: most iterations of each pressure solve, in [2, 10000].
     cfl : float
         Courant number of the adaptive time step, in (0, 1].
+    max_dt : float
+        Largest time step (s), in (0, 1]; DFSPH also keeps its steps where its density solve
+        converges in a few iterations.
+    speed_of_sound : float
+        WCSPH: speed of sound (m/s) of the Tait equation of state, > 0, or 0 for ten times the
+        largest expected speed ``sqrt(2 g H)``.
     surface : bool
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
-        Windowed-sinc smoothing iterations of the surface (0 to 10000).
+        Windowed-sinc smoothing iterations of the surface (0 to 1000).
     feature_smoothing : int
         Feature-weighted Laplacian smoothing sweeps of the surface (0 to 10000): flat water
         smoothed, droplets and sheets kept (see ``scenes/liquid_surface.py``).
@@ -68,12 +78,12 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         time: flat water up to 2x flatter (as flat on one SPH pool), small drops 15-21 %
         larger (see ``scenes/liquid_surface.py``); ``false`` for isotropic kernels.
     """
-    check_choice("solver", solver, ("dfsph", "wcsph"))
     simulation = dam_break_liquid(
         column_width=column_width, column_height=column_height, tank_length=tank_length,
         depth=depth, tank_height=tank_height, spacing=spacing, viscosity=viscosity, xsph=xsph,
         surface_tension=surface_tension, solver=solver,
-        **({"max_density_error": max_density_error} if solver == "dfsph" else {}), cfl=cfl)
+        **solver_options(solver, max_density_error, max_iterations, speed_of_sound),
+        cfl=cfl, max_dt=max_dt)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
     tank = Box((0.0, 0.0, 0.0), (tank_length, depth, tank_height))  # the tank's inner box
     flow.add_collider("tank", ~tank, role="container")

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from filters.geometry import Box
 from filters.sph.scenarios import drop_liquid
-from filters.validation import check_choice
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
 
+from .liquid_solver import solver_options
 from .liquid_surface import add_liquid_surface
 
 SCENE_FPS = 30.0
@@ -23,7 +23,9 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
           surface_tension: float = 0.0, solver: str = "dfsph",
-          max_density_error: float = 0.001, surface: bool = True, smooth_iterations: int = 30,
+          max_density_error: float = 0.001,
+          max_iterations: int = 100, cfl: float = 0.4, max_dt: float = 0.005,
+          speed_of_sound: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
     """Build the drop flow (about 2,500 fluid particles with the defaults).
 
@@ -54,10 +56,20 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         velocity CFL, implicit viscosity) or weakly compressible SPH (Tait equation of state).
     max_density_error : float
         DFSPH tolerance of the mean compression, in [1e-6, 0.1] (0.001 = 0.1 %).
+    max_iterations : int
+        DFSPH: most iterations of each pressure solve, in [2, 10000].
+    cfl : float
+        Courant number of the adaptive time step, in (0, 1].
+    max_dt : float
+        Largest time step (s), in (0, 1]; DFSPH also keeps its steps where its density solve
+        converges in a few iterations.
+    speed_of_sound : float
+        WCSPH: speed of sound (m/s) of the Tait equation of state, > 0, or 0 for ten times the
+        largest expected speed ``sqrt(2 g H)``.
     surface : bool
         Also write the reconstructed water surface (``surface.pvd``).
     smooth_iterations : int
-        Windowed-sinc smoothing iterations of the surface (0 to 10000).
+        Windowed-sinc smoothing iterations of the surface (0 to 1000).
     feature_smoothing : int
         Feature-weighted Laplacian smoothing sweeps of the surface (0 to 10000): flat water
         smoothed, droplets and sheets kept (see ``scenes/liquid_surface.py``).
@@ -66,13 +78,13 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         time: flat water up to 2x flatter (as flat on one SPH pool), small drops 15-21 %
         larger (see ``scenes/liquid_surface.py``); ``false`` for isotropic kernels.
     """
-    check_choice("solver", solver, ("dfsph", "wcsph"))
     simulation = drop_liquid(
         tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,
         pool_depth=pool_depth, drop_radius=drop_radius, drop_height=drop_height,
         drop_speed=drop_speed, spacing=spacing, viscosity=viscosity,
         surface_tension=surface_tension, solver=solver,
-        **({"max_density_error": max_density_error} if solver == "dfsph" else {}))
+        **solver_options(solver, max_density_error, max_iterations, speed_of_sound),
+        cfl=cfl, max_dt=max_dt)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
     tank = Box((0.0, 0.0, 0.0), (tank_length, tank_width, tank_height))  # the tank's inner box
     flow.add_collider("tank", ~tank, role="container")

@@ -27,3 +27,13 @@ def test_quickstart_test_command_is_what_ci_runs():
     assert len(lines) == 2
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
     assert lines[1] in ci
+
+
+def test_pyvista_example_runs():
+    code = re.search(r"## From PyVista, Blender and Houdini\n\n```python\n(.*?)```", README,
+                     re.S).group(1)
+    namespace = {}
+    exec(compile(code, "README", "exec"), namespace)
+    surface = namespace["surface"]
+    assert type(surface).__name__ == "PolyData" and surface.n_points > 0
+    assert surface.n_open_edges == 0

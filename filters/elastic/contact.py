@@ -8,7 +8,13 @@ restitution and friction.  Its arrays can be passed to the Numba functions
 :func:`union_sdf`, :func:`resolve_particle` and :func:`resolve_contacts` from any ``@njit``
 kernel (springs, SPH, advected particles), or used through :meth:`Colliders.resolve`.
 
-Contact response (per particle, per primitive it penetrates, after the particle has moved):
+Elastic objects (cloth, hair, jello) use these colliders through
+:class:`filters.elastic.contact_model.ContactModel`, which solves contacts and friction inside
+every time step; :meth:`Colliders.resolve` is the projection for particles that move on their
+own (it can add elastic energy to particles joined by springs).
+
+Contact response of :meth:`Colliders.resolve` (per particle, per primitive it penetrates, after
+the particle has moved):
 with signed distance ``phi < thickness`` and outward normal ``n``, the particle is projected to
 ``phi = thickness``; if it approaches (``v_n = v . n < 0``) its normal velocity becomes
 ``-e v_n`` (restitution ``e``) and its tangential velocity ``v_t`` is reduced by Coulomb friction,
@@ -36,7 +42,7 @@ from numba import njit, prange
 from ..geometry import Box, Complement, Plane, Shape, Sphere
 from ..validation import check_points, check_range
 
-__all__ = ["Colliders", "union_sdf", "resolve_particle", "resolve_contacts"]
+__all__ = ["Colliders", "union_sdf", "primitive_sdf", "resolve_particle", "resolve_contacts"]
 
 
 @njit(cache=True, inline="always")
@@ -113,6 +119,27 @@ def union_sdf(p, planes, spheres, boxes):
         if phi < best:
             best, b0, b1, b2 = phi, n0, n1, n2
     return best, b0, b1, b2
+
+
+@njit(cache=True, inline="always")
+def primitive_sdf(p, planes, spheres, boxes, c):
+    """Signed distance (m) of point ``p`` (3,) to primitive ``c`` of the packed colliders,
+    counted over planes, then spheres, then boxes; with its unit outward normal and friction.
+
+    Returns
+    -------
+    (phi, n0, n1, n2, mu) : floats
+    """
+    if c < planes.shape[0]:
+        phi, n0, n1, n2 = _plane(p, planes[c])
+        return phi, n0, n1, n2, planes[c, 5]
+    c -= planes.shape[0]
+    if c < spheres.shape[0]:
+        phi, n0, n1, n2 = _sphere(p, spheres[c])
+        return phi, n0, n1, n2, spheres[c, 6]
+    c -= spheres.shape[0]
+    phi, n0, n1, n2 = _box(p, boxes[c])
+    return phi, n0, n1, n2, boxes[c, 8]
 
 
 @njit(cache=True, inline="always")
@@ -302,81 +329,3 @@ class Colliders:
         skip = np.zeros(0, dtype=np.bool_) if skip is None else np.ascontiguousarray(skip, bool)
         return int(resolve_contacts(positions, velocities, self.planes, self.spheres, self.boxes,
                                     self.thickness, skip))
-
-
-# ---------------------------------------------------------------------------------------------
-# Penalty contact for implicit integrators
-# ---------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _penalty_one(phi, n0, n1, n2, thickness, kappa, mu, i, f, blocks, mu_out):
-    gap = phi - thickness
-    if gap >= 0.0:
-        return 0.0
-    f[i, 0] -= kappa * gap * n0
-    f[i, 1] -= kappa * gap * n1
-    f[i, 2] -= kappa * gap * n2
-    nn = (n0, n1, n2)
-    for p in range(3):
-        for q in range(3):
-            blocks[i, p, q] += kappa * nn[p] * nn[q]
-    mu_out[i] = max(mu_out[i], mu)
-    return 0.5 * kappa * gap * gap
-
-
-@njit(parallel=True, cache=True)
-def contact_penalty(x, planes, spheres, boxes, thickness, kappa, skip, f, blocks, mu_out):
-    """Penalty contact ``U = sum kappa/2 min(phi - thickness, 0)^2`` over particles and primitives.
-
-    Writes the forces ``-dU/dx`` into ``f`` (N, 3), the (Gauss-Newton) Hessian blocks
-    ``kappa n n^T`` into ``blocks`` (N, 3, 3) and the friction coefficient of each touching
-    particle into ``mu_out`` (N,) (-1 where there is no contact); returns ``U`` (J).  Used inside
-    the incremental potential of :func:`filters.integrators.backward_euler`, so that contacts
-    are part of the implicit solve instead of a projection that would inject elastic energy.
-    """
-    energy = 0.0
-    for i in prange(x.shape[0]):
-        for k in range(3):
-            f[i, k] = 0.0
-            for q in range(3):
-                blocks[i, k, q] = 0.0
-        mu_out[i] = -1.0
-        if skip[i]:
-            continue
-        e = 0.0
-        for j in range(planes.shape[0]):
-            phi, n0, n1, n2 = _plane(x[i], planes[j])
-            e += _penalty_one(phi, n0, n1, n2, thickness, kappa, planes[j, 5], i, f, blocks, mu_out)
-        for j in range(spheres.shape[0]):
-            phi, n0, n1, n2 = _sphere(x[i], spheres[j])
-            e += _penalty_one(phi, n0, n1, n2, thickness, kappa, spheres[j, 6], i, f, blocks,
-                              mu_out)
-        for j in range(boxes.shape[0]):
-            phi, n0, n1, n2 = _box(x[i], boxes[j])
-            e += _penalty_one(phi, n0, n1, n2, thickness, kappa, boxes[j, 8], i, f, blocks, mu_out)
-        energy += e
-    return energy
-
-
-@njit(parallel=True, cache=True)
-def penalty_friction(v, f_contact, mu, inv_mass, h):
-    """Coulomb friction for penalty contacts, in place on velocities ``v`` (N, 3).
-
-    The normal impulse of a step is ``h |f_contact|``; the tangential velocity (tangent to
-    ``f_contact``) is reduced by at most ``mu h |f_contact| / m`` and never reversed.
-    """
-    for i in prange(v.shape[0]):
-        if mu[i] <= 0.0:
-            continue
-        fn = math.sqrt(f_contact[i, 0] ** 2 + f_contact[i, 1] ** 2 + f_contact[i, 2] ** 2)
-        if fn == 0.0:
-            continue
-        n0, n1, n2 = f_contact[i, 0] / fn, f_contact[i, 1] / fn, f_contact[i, 2] / fn
-        vn = v[i, 0] * n0 + v[i, 1] * n1 + v[i, 2] * n2
-        t0, t1, t2 = v[i, 0] - vn * n0, v[i, 1] - vn * n1, v[i, 2] - vn * n2
-        vt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-        if vt == 0.0:
-            continue
-        scale = max(0.0, 1.0 - mu[i] * h * fn * inv_mass[i] / vt)
-        v[i, 0] = vn * n0 + scale * t0
-        v[i, 1] = vn * n1 + scale * t1
-        v[i, 2] = vn * n2 + scale * t2

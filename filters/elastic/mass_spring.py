@@ -2,10 +2,12 @@
 
 :class:`MassSpringSimulation` couples a :class:`filters.elastic.topology.SpringTopology` with a
 :class:`filters.elastic.springs.SpringSystem` and one of the schemes of :mod:`filters.integrators`
-(backward Euler by Newton with a line search by default).  After every step, particles are pushed
-out of the :class:`filters.elastic.contact.Colliders` with restitution and friction.  Frames carry the
-spring mesh (hair as lines, cloth as triangles) or, for jello, the user's embedded mesh deformed
-by the lattice (trilinear weights), with a fixed topology so that XDMF export can share it.
+(backward Euler by Newton with a line search by default), with contacts and Coulomb friction
+against :class:`filters.elastic.contact.Colliders` solved inside every step
+(:class:`filters.elastic.contact_model.ContactModel`).  Frames carry the spring mesh (hair as
+lines, cloth as triangles) or, for jello, the user's embedded mesh deformed by the lattice
+(trilinear weights), with a fixed topology so that XDMF export can share it, and the energy
+account as field data.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contact import Colliders
+from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, ContactModel
+from .energy import EnergyAccount, energy_account
 from ..integrators import check_scheme, integrate
 from ..linalg import LinearSolver
 from ..simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
@@ -94,7 +98,8 @@ class MassSpringSimulation(Simulation):
         Seed-form stiffness ``k`` (N) of stretch springs, >= 0: ``f = -k (l/L - 1) u``.
     shear_stiffness, bend_stiffness : float, optional
         Stiffness (N) of shear and bend springs; default ``stretch_stiffness`` and
-        ``0.1 * stretch_stiffness``.
+        ``0.1 * stretch_stiffness``.  For a topology with ``bend_triples`` (hair),
+        ``bend_stiffness`` is the bending rigidity (N m^2) instead.
     damping : float
         Spring damping coefficient (N s/m), >= 0.
     damping_mode : {"axial", "relative"}
@@ -121,9 +126,24 @@ class MassSpringSimulation(Simulation):
     max_speed : float
         Any particle faster than this (m/s) raises :class:`SimulationUnstableError`.
     contact_stiffness : float, optional
-        Penalty stiffness (N/m) of contacts in the implicit schemes (see
-        :class:`filters.elastic.springs.SpringSystem`); explicit schemes project particles out of the
-        colliders after every substep instead (:meth:`filters.elastic.contact.Colliders.resolve`).
+        One barrier stiffness (N/m) for every contact point, > 0; by default each point's is
+        ``contact_ratio`` times its share of the diagonal of the implicit system matrix,
+        ``m / (max_dt / substeps)^2`` plus its springs' stiffness
+        (:class:`filters.elastic.contact_model.ContactModel`).
+    contact_ratio : float
+        Barrier stiffness over that diagonal, > 0.
+    slip_velocity : float
+        Slip velocity (m/s) below which friction holds (static friction creeps slower), > 0.
+    bend_damping : float
+        Damping time (s) of the bending of polylines (hair, :attr:`SpringTopology.bend_triples`),
+        >= 0: each triple's damping is this times its bending stiffness (stiffness-proportional
+        Rayleigh damping: a bending mode of angular frequency ``w`` gets the damping ratio
+        ``bend_damping w / 2``).
+
+    Contacts with ``colliders`` are solved inside every step of every scheme, with Coulomb
+    friction (:mod:`filters.elastic.contact_model`, :mod:`filters.contact_solve`).  Contact
+    points are the particles, or the embedded mesh's vertices when the topology has one
+    (jello), so that what is drawn is what touches.
     """
 
     instability_hint = ("the spring forces are too stiff for this time step: use "
@@ -133,7 +153,8 @@ class MassSpringSimulation(Simulation):
                  bend_stiffness=None, damping=0.0, damping_mode="axial", drag=0.0,
                  gravity=(0.0, 0.0, -9.81), scheme="backward_euler", solver="auto", colliders=None,
                  max_dt=1.0 / 60.0, substeps=1, newton_tol=1e-3, max_newton=10, max_speed=100.0,
-                 contact_stiffness=None):
+                 contact_stiffness=None, contact_ratio=DEFAULT_STIFFNESS_RATIO,
+                 slip_velocity=DEFAULT_SLIP_VELOCITY, bend_damping=0.0):
         if not isinstance(topology, SpringTopology):
             raise TypeError(f"topology must be a SpringTopology, got {type(topology).__name__}")
         k_stretch = check_range("stretch_stiffness", stretch_stiffness, 0.0)
@@ -142,6 +163,12 @@ class MassSpringSimulation(Simulation):
         k_bend = 0.1 * k_stretch if bend_stiffness is None else check_range(
             "bend_stiffness", bend_stiffness, 0.0)
         damping = check_range("damping", damping, 0.0)
+        bend_damping = check_range("bend_damping", bend_damping, 0.0)
+        check_range("contact_ratio", contact_ratio, 0.0, math.inf, low_inclusive=False)
+        check_range("slip_velocity", slip_velocity, 0.0, math.inf, low_inclusive=False)
+        if contact_stiffness is not None:
+            check_range("contact_stiffness", contact_stiffness, 0.0, math.inf,
+                        low_inclusive=False)
         check_choice("damping_mode", damping_mode, DAMPING_MODES)
         drag = check_range("drag", drag, 0.0)
         gravity = check_finite_vector("gravity", gravity, 3)
@@ -161,14 +188,29 @@ class MassSpringSimulation(Simulation):
             a.setflags(write=False)
         self.model = MassSpringModel(topology, stiffness, damp, damping_mode, drag,
                                      tuple(gravity), scheme, solver, substeps, max_speed)
-        implicit = scheme in ("backward_euler", "linearized_backward_euler")
+        bending = {}
+        if topology.bend_triples is not None:
+            bending = dict(bend_triples=topology.bend_triples,
+                           bend_stiffness=k_bend * topology.bend_scale,
+                           bend_damping=bend_damping * k_bend * topology.bend_scale)
         self.system = SpringSystem(topology.springs, topology.rest_lengths, stiffness,
                                    topology.masses, damping=damp, damping_mode=damping_mode,
-                                   drag=drag, gravity=gravity, pinned=topology.pinned,
-                                   colliders=colliders if implicit else None,
-                                   contact_stiffness=contact_stiffness)
+                                   drag=drag, gravity=gravity, pinned=topology.pinned, **bending)
         self.colliders = colliders
+        self.contact = None
+        if colliders is not None:
+            embedding = None
+            if topology.embedding is not None:
+                embedding = (topology.embedding.nodes, topology.embedding.weights)
+            self.contact = ContactModel(colliders, topology.masses, self.max_dt / substeps,
+                                        embedding=embedding, pinned=topology.pinned,
+                                        stiffness_ratio=contact_ratio,
+                                        stiffness=contact_stiffness,
+                                        slip_velocity=slip_velocity,
+                                        elastic_diagonal=self.system.elastic_diagonal())
         self.state = State(topology.positions, velocities)
+        if self.contact is not None:
+            self.contact.check_outside(self.state.positions)
         self.state.velocities[topology.pinned] = 0.0
         self.last_info = None
 
@@ -190,7 +232,8 @@ class MassSpringSimulation(Simulation):
         return Frame(time=s.time, points=points,
                      point_data={"velocity": vel,
                                  "id": np.arange(points.shape[0], dtype=np.int64)},
-                     connectivity=(top.offsets.copy(), top.indices.copy()))
+                     connectivity=(top.offsets.copy(), top.indices.copy()),
+                     field_data=self.energies().field_data())
 
     def _step(self, dt: float) -> None:
         m = self.model
@@ -200,14 +243,11 @@ class MassSpringSimulation(Simulation):
             options["solver"] = self.linear_solver
         if m.scheme == "backward_euler":
             options.update(self._newton)
+        if self.contact is not None:
+            options["contact"] = self.contact
         s = self.state
         for _ in range(m.substeps):
             self.last_info = integrate(self.system, s, h, m.scheme, **options)
-            if self.colliders is not None:
-                if self.system.colliders is not None:  # implicit: penalty inside the solve
-                    self.system.apply_contact_friction(s.positions, s.velocities, h)
-                else:
-                    self.colliders.resolve(s.positions, s.velocities, skip=self.system.pinned)
             speed2 = np.einsum("ij,ij->i", s.velocities, s.velocities).max(initial=0.0)
             if not (speed2 <= m.max_speed ** 2):
                 raise SimulationUnstableError(
@@ -215,9 +255,15 @@ class MassSpringSimulation(Simulation):
                     self.instability_hint)
 
     # -- diagnostics ------------------------------------------------------------------------
+    def energies(self) -> EnergyAccount:
+        """The energy account (J) of the current state: kinetic, gravitational, elastic and
+        contact energies (:class:`filters.elastic.energy.EnergyAccount`)."""
+        return energy_account(self.system, self.state.positions, self.state.velocities,
+                              self.contact)
+
     def energy(self) -> float:
-        """Kinetic plus elastic plus gravitational energy (J) of the current state."""
-        return self.system.energy(self.state.positions, self.state.velocities)
+        """Total energy (J) of the current state: kinetic + gravitational + elastic + contact."""
+        return self.energies().total
 
     def pin_forces(self) -> np.ndarray:
         """Forces (N) the springs exert on the pinned particles, (P, 3), in pin order."""
@@ -235,17 +281,22 @@ class HairSimulation(MassSpringSimulation):
         Root positions (m), pinned.
     directions : (R, 3) or (3,) array_like
         Strand directions.
-    segments, length, linear_density, cells
+    segments, length, linear_density, cells, clamped
         As in :func:`filters.elastic.topology.hair_strands`.
+    bend_stiffness : float
+        Bending rigidity ``EI`` (N m^2) of a strand, >= 0 (the quadratic bending energy of
+        :func:`filters.elastic.springs.bending_springs`).  A strand hangs straight over
+        lengths beyond ``(EI / (linear_density g))^(1/3)``: 1e-6 N m^2 and 1 g/m give 4.7 cm.
     **options
-        Passed to :class:`MassSpringSimulation`.
+        Passed to :class:`MassSpringSimulation` (``bend_damping`` damps the bending).
     """
 
     def __init__(self, roots, directions, *, segments=16, length=0.3, linear_density=1e-3,
-                 cells="polylines", **options):
+                 cells="polylines", clamped=False, bend_stiffness=1e-6, **options):
         top = hair_strands(roots, directions, segments=segments, length=length,
-                           linear_density=linear_density, cells=cells)
-        super().__init__(top, **options)
+                           linear_density=linear_density, cells=cells, clamped=clamped)
+        bend_stiffness = check_range("bend_stiffness", bend_stiffness, 0.0)
+        super().__init__(top, bend_stiffness=bend_stiffness, **options)
 
 
 class ClothSimulation(MassSpringSimulation):

@@ -29,7 +29,6 @@ __all__ = [
     "jacobian_blocks",
     "incidence",
     "assemble_system",
-    "add_diagonal_blocks",
     "operator_coefficients",
     "operator_diagonal",
 ]
@@ -47,22 +46,19 @@ def spring_force3(xa, xb, va, vb, ke, rest, c, mode):
     w0 = va[0] - vb[0]
     w1 = va[1] - vb[1]
     w2 = va[2] - vb[2]
-    l = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     f0 = 0.0
     f1 = 0.0
     f2 = 0.0
     if rest == 0.0:
-        f0 = -ke * d0
-        f1 = -ke * d1
-        f2 = -ke * d2
+        # a linear spring: relative damping in both modes (no direction at zero length)
+        return -ke * d0 - c * w0, -ke * d1 - c * w1, -ke * d2 - c * w2
+    l = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     if l > EPS:
         inv = 1.0 / l
         u0 = d0 * inv
         u1 = d1 * inv
         u2 = d2 * inv
-        s = 0.0
-        if rest > 0.0:
-            s = -ke * (l - rest)
+        s = -ke * (l - rest)
         if mode == 0:
             s -= c * (w0 * u0 + w1 * u1 + w2 * u2)
         f0 += s * u0
@@ -248,9 +244,11 @@ def jacobian_blocks(x, v, pairs, ke, rest, c, mode, definite, with_damping_dx, j
             for q in range(3):
                 jx[s, p, q] = 0.0
                 jv[s, p, q] = 0.0
-        if rest[s] == 0.0:
+        if rest[s] == 0.0:  # linear spring, relative damping in both modes
             for p in range(3):
                 jx[s, p, p] = -ke[s]
+                jv[s, p, p] = -c[s]
+            continue
         if mode == 1:
             for p in range(3):
                 jv[s, p, p] = -c[s]
@@ -326,19 +324,6 @@ def assemble_system(jx, jv, inc_ptr, inc_spring, inc_other, inc_slot, diag_slot,
                         data[base + 3 * r * nb + 3 * opos + q] -= val
 
 
-@njit(parallel=True, cache=True)
-def add_diagonal_blocks(blocks, diag_slot, bptr, pinned, data):
-    for i in prange(blocks.shape[0]):
-        if pinned[i]:
-            continue
-        b0 = bptr[i]
-        nb = bptr[i + 1] - b0
-        dpos = diag_slot[i] - b0
-        for r in range(3):
-            for q in range(3):
-                data[9 * b0 + 3 * r * nb + 3 * dpos + q] += blocks[i, r, q]
-
-
 @njit(cache=True)
 def operator_coefficients(x, xdir, pairs, ke, rest, c, mode, h, blocks):
     """Per-spring symmetric blocks ``K_s + C_s / h`` (6 entries: xx, xy, xz, yy, yz, zz).
@@ -348,7 +333,8 @@ def operator_coefficients(x, xdir, pairs, ke, rest, c, mode, h, blocks):
     ``alpha u u^T + beta I + gamma w w^T`` with ``u`` the direction at ``x`` and ``w`` the frozen
     damping direction at ``xdir``; for ``L > 0``, ``K_s = k_e [u u^T + t (I - u u^T)]`` with
     ``t = max(1 - L/l, 0)``, i.e. ``alpha = k_e (1 - t)``, ``beta = k_e t``; for ``L = 0``,
-    ``K_s = k_e I``; axial damping ``C_s = c w w^T``, relative damping ``C_s = c I``.
+    ``K_s = k_e I``; axial damping ``C_s = c w w^T``, relative damping (and any damping of a
+    zero-rest-length spring) ``C_s = c I``.
     Serial: one pass over 24k springs costs ~0.1 ms, less than a parallel region's start-up on a
     busy machine.
     """
@@ -382,7 +368,7 @@ def operator_coefficients(x, xdir, pairs, ke, rest, c, mode, h, blocks):
                 u2 = d2 * inv_l
                 alpha = ke[s] * (1.0 - t)
                 beta = ke[s] * t
-        if mode == 1:
+        if mode == 1 or rest[s] == 0.0:
             beta += c[s] * inv_h
         elif c[s] != 0.0:
             e0 = xdir[a, 0] - xdir[b, 0]
@@ -404,7 +390,8 @@ def operator_coefficients(x, xdir, pairs, ke, rest, c, mode, h, blocks):
 
 @njit(cache=True)
 def operator_diagonal(masses, pinned, h, drag, contact_blocks, diag):
-    """Particle diagonal blocks ``(m/h^2 + drag/h) I`` (+ contact blocks); identity if pinned."""
+    """Particle diagonal blocks ``(m/h^2 + drag/h) I`` (+ ``contact_blocks`` when it has N
+    rows); identity if pinned."""
     dm = drag / h
     with_contacts = contact_blocks.shape[0] == masses.shape[0]
     for i in range(masses.shape[0]):

@@ -14,6 +14,7 @@ Damping (``c`` in N s/m), with ``w = v_a - v_b``:
 
 * ``"axial"`` (the seed's): ``f_a = -c (w . u) u`` — damps stretching only;
 * ``"relative"``: ``f_a = -c w`` (the simplified form);
+* a zero-rest-length spring has no direction at zero length: it always damps ``-c w``;
 * a per-particle *drag* ``f_i = -c_drag v_i`` (the simplest form) lives in :class:`SpringSystem`.
 
 The force on ``b`` is always ``-f_a``, so linear momentum is conserved to round-off.
@@ -24,11 +25,13 @@ Jacobians (Baraff & Witkin 1998, "Large steps in cloth simulation", SIGGRAPH):
 ``-c I`` (relative).  ``df_a/dx_b = -J_x`` and so on.  For a compressed spring (``l < L``) the
 transverse term ``(1 - L/l) < 0`` makes ``-J_x`` indefinite; the *definite* Jacobians clamp it to 0
 (Choi & Ko 2002, "Stable but responsive cloth"), which keeps the implicit system matrix SPD.
+
+Polylines (hair) can also carry the quadratic bending energy of :func:`bending_springs`, written
+as linear springs of which some have negative stiffness (their sum is positive semi-definite).
 """
 
 from __future__ import annotations
 
-import math
 from contextlib import contextmanager
 
 import numba
@@ -36,13 +39,14 @@ import numpy as np
 
 from ..linalg import BlockOperator, ImplicitSystem
 from ..validation import check_choice, check_finite_vector, check_points, check_range
-from .spring_kernels import (add_diagonal_blocks, assemble_system, elastic_energy,
+from .spring_kernels import (assemble_system, elastic_energy,
                              elastic_energy_serial, incidence, jacobian_blocks, operator_coefficients,
                              operator_diagonal, per_spring_forces, point_energies,
                              symplectic_parallel, symplectic_serial, total_forces)
 
 __all__ = [
     "DAMPING_MODES",
+    "bending_springs",
     "effective_stiffness",
     "spring_forces",
     "spring_energy",
@@ -97,6 +101,61 @@ def _per_spring(name, value, n, low=0.0):
     if not np.isfinite(arr).all() or (arr.size and arr.min() < low):
         raise ValueError(f"{name} must be finite and >= {low:g} for every spring")
     return arr.copy()
+
+
+def bending_springs(triples, stiffness, damping, n_points):
+    """The quadratic bending energy of polylines as zero-rest-length springs.
+
+    For consecutive particles ``(a, b, c)`` of a polyline whose rest shape is straight with
+    equal segments, ``E = k/2 |x_a - 2 x_b + x_c|^2`` is the isometric (quadratic) bending
+    energy of Bergou, Wardetzky, Harmon, Zorin & Grinspun (2006, "A quadratic bending model
+    for inextensible surfaces", SGP), in its one-dimensional form: ``|x_a - 2 x_b + x_c| =
+    2 l sin(theta / 2)`` for a turning angle ``theta``, so ``E ~ (EI / l) theta^2 / 2`` with
+    ``k = EI / l^3``, the discrete elastic-rod energy for small angles; it is invariant under
+    rigid motions and its Hessian is constant.  Since ``|a - 2b + c|^2 = 2|a - b|^2 +
+    2|b - c|^2 - |a - c|^2``, it is the energy of three linear (zero-rest-length) springs of
+    stiffness ``2k``, ``2k`` and ``-k``; the damping force ``-c (v_a - 2 v_b + v_c)`` (per
+    particle, weighted like the stiffness) is their relative damping ``2c, 2c, -c``.  Springs
+    shared by neighbouring triples are merged.
+
+    Parameters
+    ----------
+    triples : (B, 3) int array_like
+        Particles ``(a, b, c)``.
+    stiffness, damping : (B,) array_like or float
+        ``k`` (N/m) and ``c`` (N s/m) per triple, >= 0.
+    n_points : int
+        Number of particles.
+
+    Returns
+    -------
+    pairs : (S, 2) int64 array
+    stiffness : (S,) float64 array
+        Linear spring constants (N/m), some negative; their sum is positive semi-definite.
+    damping : (S,) float64 array
+        Relative damping (N s/m), likewise.
+    """
+    t = np.ascontiguousarray(triples, dtype=np.int64)
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise ValueError(f"bend_triples must have shape (B, 3), got {t.shape}")
+    if t.size and (t.min() < 0 or t.max() >= n_points):
+        raise ValueError(f"bend_triples must index particles in [0, {n_points - 1}]")
+    if t.size and np.any((t[:, 0] == t[:, 1]) | (t[:, 1] == t[:, 2]) | (t[:, 0] == t[:, 2])):
+        raise ValueError("bend_triples must join three different particles")
+    b = t.shape[0]
+    k = _per_spring("bend_stiffness", stiffness, b)
+    c = _per_spring("bend_damping", damping, b)
+    pairs = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [0, 2]]])
+    factor = np.repeat([2.0, 2.0, -1.0], b)
+    pairs = np.sort(pairs, axis=1)
+    keys = pairs[:, 0] * n_points + pairs[:, 1]
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    ks = np.zeros(uniq.size)
+    cs = np.zeros(uniq.size)
+    np.add.at(ks, inverse, factor * np.tile(k, 3))
+    np.add.at(cs, inverse, factor * np.tile(c, 3))
+    out = np.ascontiguousarray(np.stack([uniq // n_points, uniq % n_points], axis=1))
+    return out, ks, cs
 
 
 def effective_stiffness(stiffness, rest_lengths):
@@ -233,18 +292,23 @@ class SpringSystem(ImplicitSystem):
         Gravitational acceleration (m/s^2).
     pinned : (N,) bool array_like, optional
         Particles held fixed.
-    colliders : filters.elastic.contact.Colliders, optional
-        Obstacles handled *inside* the forces, energy and system matrix by a penalty
-        ``contact_stiffness/2 min(phi - thickness, 0)^2`` (for implicit schemes, whose solve then
-        sees the contacts; a projection after a large implicit step would inject elastic energy).
-    contact_stiffness : float, optional
-        Penalty stiffness (N/m), > 0; default 10 times the stiffest spring's ``k_e``, at least
-        ``1e4`` N/m.
+    bend_triples : (B, 3) int array_like, optional
+        Consecutive particles ``(a, b, c)`` of polylines (hair) with the quadratic bending
+        energy ``bend_stiffness / 2 |x_a - 2 x_b + x_c|^2`` (see :func:`bending_springs`).
+    bend_stiffness : (B,) array_like or float
+        Bending stiffness (N/m) of every triple, >= 0: ``EI / l^3`` for a rod of bending
+        rigidity ``EI`` (N m^2) and segments of length ``l``.
+    bend_damping : (B,) array_like or float
+        Bending damping (N s/m) of every triple, >= 0: the force ``-bend_damping (v_a - 2 v_b
+        + v_c)`` weighted like the stiffness (Rayleigh damping of the bending modes).
+
+    Contacts are not part of the system: the schemes of :mod:`filters.integrators` add them
+    (``contact=``, :class:`filters.elastic.contact_model.ContactModel`).
     """
 
     def __init__(self, springs, rest_lengths, stiffness, masses, *, damping=0.0,
                  damping_mode="axial", drag=0.0, gravity=(0.0, 0.0, -9.81), pinned=None,
-                 colliders=None, contact_stiffness=None):
+                 bend_triples=None, bend_stiffness=0.0, bend_damping=0.0):
         masses = np.ascontiguousarray(masses, dtype=np.float64)
         if masses.ndim != 1 or masses.size == 0:
             raise ValueError(f"masses must be a non-empty (N,) array, got shape {masses.shape}")
@@ -253,11 +317,23 @@ class SpringSystem(ImplicitSystem):
         n = masses.shape[0]
         self.n_points = n
         self.masses = masses
-        self.pairs = _check_springs(springs, n)
-        s = self.pairs.shape[0]
-        self.rest = _per_spring("rest_lengths", rest_lengths, s)
-        self.stiffness = _per_spring("stiffness", stiffness, s)
-        self.damping = _per_spring("damping", damping, s)
+        pairs = _check_springs(springs, n)
+        s = pairs.shape[0]
+        rest = _per_spring("rest_lengths", rest_lengths, s)
+        stiffness = _per_spring("stiffness", stiffness, s)
+        damping = _per_spring("damping", damping, s)
+        self.n_springs = s
+        if bend_triples is not None:
+            b_pairs, b_k, b_c = bending_springs(bend_triples, bend_stiffness, bend_damping, n)
+            pairs = np.ascontiguousarray(np.concatenate([pairs, b_pairs]))
+            rest = np.concatenate([rest, np.zeros(b_k.shape[0])])
+            stiffness = np.concatenate([stiffness, b_k])
+            damping = np.concatenate([damping, b_c])
+            s = pairs.shape[0]
+        self.pairs = pairs
+        self.rest = rest
+        self.stiffness = stiffness
+        self.damping = damping
         self.damping_mode = check_choice("damping_mode", damping_mode, DAMPING_MODES)
         self.mode = DAMPING_MODES.index(self.damping_mode)
         self.drag = check_range("drag", drag, 0.0)
@@ -281,34 +357,6 @@ class SpringSystem(ImplicitSystem):
         self._operator = None
         self._undamped = self.drag == 0.0 and not np.any(self.damping)
         self._no_blocks = np.zeros((0, 3, 3))
-        self.colliders = colliders
-        if colliders is not None:
-            default = max(1e4, 10.0 * float(self.ke.max(initial=0.0)))
-            self.contact_stiffness = default if contact_stiffness is None else check_range(
-                "contact_stiffness", contact_stiffness, 0.0, math.inf, low_inclusive=False)
-            self._fc = np.zeros((n, 3))
-            self._cb = np.zeros((n, 3, 3))
-            self._mu = np.zeros(n)
-
-    def _contacts(self, x):
-        """Penalty contact energy (J); fills contact forces, Hessian blocks and friction."""
-        from .contact import contact_penalty
-
-        c = self.colliders
-        with _threads(x.shape[0]):
-            return float(contact_penalty(x, c.planes, c.spheres, c.boxes, c.thickness,
-                                         self.contact_stiffness, self.pinned, self._fc,
-                                         self._cb, self._mu))
-
-    def apply_contact_friction(self, x, v, h):
-        """Coulomb friction of the penalty contacts at ``x`` on velocities ``v`` (in place)."""
-        if self.colliders is None:
-            return
-        from .contact import penalty_friction
-
-        self._contacts(x)
-        with _threads(x.shape[0]):
-            penalty_friction(v, self._fc, self._mu, self.inv_mass, float(h))
 
     # -- forces and energies --------------------------------------------------------------
     def _force_kernel(self, x, v, ke, c, mode, gravity, drag, f):
@@ -329,9 +377,6 @@ class SpringSystem(ImplicitSystem):
         """Spring elastic forces plus gravity (no damping), (N, 3)."""
         f = np.empty_like(x) if out is None else out
         self._force_kernel(x, x, self.ke, self._zero_c, 1, self.gravity, 0.0, f)
-        if self.colliders is not None:
-            self._contacts(x)
-            f += self._fc
         return f
 
     def damping_forces(self, xdir, v, out=None):
@@ -347,15 +392,32 @@ class SpringSystem(ImplicitSystem):
                            self.drag, f)
         return f
 
+    def elastic_energy(self, x):
+        """Elastic energy (J) of the springs (and bending) at ``x``."""
+        if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS:
+            return float(elastic_energy_serial(x, self.pairs, self.ke, self.rest))
+        return float(elastic_energy(x, self.pairs, self.ke, self.rest))
+
+    def elastic_diagonal(self):
+        """Each particle's elastic stiffness (N/m): the sum of ``k_e`` over its springs (the
+        diagonal of ``-df/dx`` for springs at rest length), (N,)."""
+        k = np.zeros(self.n_points)
+        np.add.at(k, self.pairs[:, 0], self.ke)
+        np.add.at(k, self.pairs[:, 1], self.ke)
+        return k
+
+    def gravitational_energy(self, x):
+        """Gravitational energy ``-sum m_i g . x_i`` (J), zero at the origin."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        return float(point_energies(x, x, self.masses, self.gravity)[1])
+
     def potential_energy(self, x):
         """Elastic plus gravitational potential energy (J)."""
-        if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS:
-            elastic = elastic_energy_serial(x, self.pairs, self.ke, self.rest)
-        else:
-            elastic = elastic_energy(x, self.pairs, self.ke, self.rest)
-        contact = self._contacts(x) if self.colliders is not None else 0.0
+        elastic = (elastic_energy_serial(x, self.pairs, self.ke, self.rest)
+                   if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS
+                   else elastic_energy(x, self.pairs, self.ke, self.rest))
         x = np.ascontiguousarray(x, dtype=np.float64)
-        return float(elastic + contact + point_energies(x, x, self.masses, self.gravity)[1])
+        return float(elastic + point_energies(x, x, self.masses, self.gravity)[1])
 
     def kinetic_energy(self, v):
         """Kinetic energy (J)."""
@@ -371,8 +433,8 @@ class SpringSystem(ImplicitSystem):
 
         Below :data:`PARALLEL_MIN_SPRINGS_EXPLICIT` springs a serial kernel scatters the forces
         directly; above, a parallel kernel computes them per spring and gathers them per
-        particle (no atomics, no races).  Contacts are not included (see
-        :meth:`filters.elastic.contact.Colliders.resolve`).
+        particle (no atomics, no races).  Contacts are not included
+        (:func:`filters.integrators.symplectic_euler` adds them).
         """
         if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS_EXPLICIT:
             if self._f_scratch is None:
@@ -453,16 +515,13 @@ class SpringSystem(ImplicitSystem):
             assemble_system(jx, jv, self.inc_ptr, self.inc_spring, self.inc_other, p["inc_slot"],
                       p["diag_slot"], p["bptr"], self.masses, self.pinned, float(h), self.drag,
                       mat.data)
-            if self.colliders is not None:
-                self._contacts(x)
-                add_diagonal_blocks(self._cb, p["diag_slot"], p["bptr"], self.pinned, mat.data)
         return mat
 
     def implicit_operator(self, x, xdir, h):
         """The matrix ``H`` of :meth:`system_matrix`, matrix-free: per spring the 6 entries of
-        the symmetric block ``K_s + C_s / h``, per particle ``(m/h^2 + drag/h) I`` plus contact
-        blocks (a :class:`filters.linalg.BlockOperator`; a product costs ~0.1 ms instead of
-        ~0.5 ms for the CSR matrix on the 64x64 benchmark cloth).
+        the symmetric block ``K_s + C_s / h``, per particle ``(m/h^2 + drag/h) I`` (a
+        :class:`filters.linalg.BlockOperator`; a product costs ~0.1 ms instead of ~0.5 ms for
+        the CSR matrix on the 64x64 benchmark cloth).
 
         Same arguments and same matrix as :meth:`system_matrix`; the PCG solver of
         :mod:`filters.integrators` uses it (the CSR matrix remains for direct solves).  The
@@ -491,10 +550,6 @@ class SpringSystem(ImplicitSystem):
         ke, rest, damping = self._op_params
         operator_coefficients(x, xdir, op.pairs, ke, rest, damping, self.mode, float(h),
                                op.blocks)
-        if self.colliders is not None:
-            self._contacts(x)
-            blocks = self._cb
-        else:
-            blocks = self._no_blocks
-        operator_diagonal(self.masses, self.pinned, float(h), self.drag, blocks, op.diag)
+        operator_diagonal(self.masses, self.pinned, float(h), self.drag, self._no_blocks,
+                          op.diag)
         return op

@@ -1,7 +1,8 @@
 """Spring topologies for hair, cloth and jello (arrays in, arrays out).
 
-* :func:`hair_strands` — chains of particles with stretch springs ``i, i+1`` and bending springs
-  ``i, i+2``, roots pinned (Selle, Lentine & Fedkiw 2008 use the same two-neighbour bending).
+* :func:`hair_strands` — chains of particles with stretch springs ``i, i+1`` and a quadratic
+  bending energy on every three consecutive particles (Bergou et al. 2006,
+  :func:`filters.elastic.springs.bending_springs`), roots pinned (and optionally clamped).
 * :func:`cloth_grid` — a rectangular grid with structural, shear and bend springs (Provot 1995).
 * :func:`cloth_from_mesh` — any triangle mesh: edge springs plus a bending spring joining the two
   vertices opposite every shared (manifold) edge.
@@ -97,6 +98,12 @@ class SpringTopology:
         Output cells in CSR form (over particles, or over the embedded mesh's vertices).
     embedding : Embedding or None
         For jello: the user's mesh embedded in the lattice.
+    bend_triples : (B, 3) int64 array or None
+        For hair: consecutive particles ``(a, b, c)`` of the strands, bent with the quadratic
+        energy of :func:`filters.elastic.springs.bending_springs`.
+    bend_scale : (B,) float64 array or None
+        Per triple, the factor that turns a bending rigidity ``EI`` (N m^2) into its
+        stiffness ``EI / l^3`` (N/m), ``l`` the segment length (m).
     """
 
     positions: np.ndarray
@@ -108,6 +115,8 @@ class SpringTopology:
     offsets: np.ndarray
     indices: np.ndarray
     embedding: Embedding | None = field(default=None)
+    bend_triples: np.ndarray | None = field(default=None)
+    bend_scale: np.ndarray | None = field(default=None)
 
     @property
     def rest_lengths(self):
@@ -129,7 +138,8 @@ class SpringTopology:
                 raise ValueError(f"pinned indices must be in [0, {mask.size - 1}]")
             mask[idx] = True
         return SpringTopology(self.positions, self.springs, self.kinds, self.masses, mask,
-                              self.topology, self.offsets, self.indices, self.embedding)
+                              self.topology, self.offsets, self.indices, self.embedding,
+                              self.bend_triples, self.bend_scale)
 
 
 def _cells(cells):
@@ -145,7 +155,7 @@ def _unique_pairs(pairs):
 
 # ---------------------------------------------------------------------------------------------
 def hair_strands(roots, directions, *, segments=16, length=0.3, linear_density=1e-3,
-                 cells="polylines"):
+                 cells="polylines", clamped=False):
     """Straight strands of particles, roots pinned.
 
     Parameters
@@ -163,11 +173,16 @@ def hair_strands(roots, directions, *, segments=16, length=0.3, linear_density=1
     cells : {"polylines", "segments"}
         Output cells: one polyline per strand, or one two-point line per stretch spring (for
         exporters without polylines, such as XDMF).
+    clamped : bool
+        Also pin each strand's second particle, so that the strand leaves its root in the
+        given direction (a follicle holds a hair's direction at the scalp).
 
     Returns
     -------
     SpringTopology
-        Stretch springs ``i, i+1`` and bend springs ``i, i+2``.
+        Stretch springs ``i, i+1`` and bending triples ``(i-1, i, i+1)`` at every interior
+        particle (``bend_triples``, ``bend_scale = 1 / l^3``): the hair's bending stiffness
+        is a bending rigidity (N m^2) and its shape does not depend on ``segments``.
     """
     if cells not in ("polylines", "segments"):
         raise ValueError(f"cells must be 'polylines' or 'segments', got {cells!r}")
@@ -196,20 +211,25 @@ def hair_strands(roots, directions, *, segments=16, length=0.3, linear_density=1
     pos = (roots[:, None, :] + t[None, :, None] * dirs[:, None, :]).reshape(-1, 3)
     base = (np.arange(r) * n_per)[:, None]
     stretch = np.stack([base + np.arange(segments), base + np.arange(1, n_per)], -1).reshape(-1, 2)
-    bend = np.stack([base + np.arange(segments - 1), base + np.arange(2, n_per)], -1).reshape(-1, 2)
-    springs = np.concatenate([stretch, bend]).astype(np.int64)
-    kinds = np.concatenate([np.full(len(stretch), STRETCH), np.full(len(bend), BEND)]).astype(np.int8)
+    triples = np.stack([base + np.arange(segments - 1), base + np.arange(1, segments),
+                        base + np.arange(2, n_per)], -1).reshape(-1, 3).astype(np.int64)
+    springs = stretch.astype(np.int64)
+    kinds = np.full(len(stretch), STRETCH, dtype=np.int8)
     seg = length / segments
     m = np.full(n_per, linear_density * seg)
     m[0] = m[-1] = 0.5 * linear_density * seg
     masses = np.tile(m, r)
     pinned = np.zeros(r * n_per, dtype=bool)
     pinned[::n_per] = True
+    if clamped:
+        pinned[1::n_per] = True
     if cells == "polylines":
         offsets, indices = _cells(np.arange(r * n_per).reshape(r, n_per))
     else:
         offsets, indices = _cells(stretch)
-    return SpringTopology(pos, springs, kinds, masses, pinned, "lines", offsets, indices)
+    scale = np.full(triples.shape[0], 1.0 / seg ** 3)
+    return SpringTopology(pos, springs, kinds, masses, pinned, "lines", offsets, indices,
+                          bend_triples=triples, bend_scale=scale)
 
 
 def cloth_grid(nx, ny, *, size=(1.0, 1.0), origin=(0.0, 0.0, 0.0), plane="xy",

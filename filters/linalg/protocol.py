@@ -6,7 +6,10 @@ matrix ``H = M / h^2 + K + C / h`` (``K = -df/dx`` made definite, ``C = -df/dv``
 columns of pinned particles the identity) assembled as a sparse matrix, and, when it has one,
 the same matrix as a matrix-free :class:`filters.linalg.operator.BlockOperator` (conjugate
 gradients then run without assembling). The integrators of :mod:`filters.integrators` and the
-solvers of :mod:`filters.linalg.solver` call only these.
+solvers of :mod:`filters.linalg.solver` call only these; the integrators add contacts
+(:class:`filters.elastic.contact_model.ContactModel`, whose barrier stiffness can follow a
+system's ``elastic_diagonal()`` when it has one) and the solvers add their diagonal blocks, so
+any system gets them.
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ class ImplicitSystem(ABC):
 
     @abstractmethod
     def conservative_forces(self, x) -> np.ndarray:
-        """Forces of the potential energy (elastic, gravity, contact) at ``x``, (N, 3)."""
+        """Forces of the potential energy (elastic, gravity) at ``x``, (N, 3); contacts are
+        the integrators' (``contact=``)."""
 
     @abstractmethod
     def damping_forces(self, xdir, v) -> np.ndarray:

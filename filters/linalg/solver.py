@@ -23,7 +23,7 @@ from .direct import direct_solve
 from .ssor import DEFAULT_OMEGA, SSORWorkspace, pcg_ssor
 
 __all__ = ["SOLVERS", "PRECONDITIONERS", "DEFAULT_OMEGA", "LinearSolver", "pcg_operator",
-           "solve_linear"]
+           "solve_linear", "add_block_diagonal"]
 
 #: Linear solvers of the implicit schemes.
 SOLVERS = ("auto", "pcg", "direct")
@@ -144,14 +144,22 @@ class LinearSolver:
                                  high_inclusive=False)
         self.workspace = SSORWorkspace()
 
-    def operator(self, system, x, xdir, h):
+    def operator(self, system, x, xdir, h, diagonal=None):
         """The system matrix at ``(x, xdir, h)``: matrix-free when the method iterates and the
-        system has such a form, else the assembled CSR matrix."""
+        system has such a form, else the assembled CSR matrix; plus the particle blocks
+        ``diagonal`` (N, 3, 3) when given (rows of pinned particles stay the identity).  A
+        matrix-free operator's arrays are overwritten by the next call."""
         op = system.implicit_operator(x, xdir, h) if self.method != "direct" else None
-        return system.system_matrix(x, xdir, h) if op is None else op
+        if op is not None:
+            if diagonal is not None:
+                op.diag += np.where(system.pinned[:, None, None], 0.0, diagonal)
+            return op
+        mat = system.system_matrix(x, xdir, h)
+        return mat if diagonal is None else add_block_diagonal(mat, diagonal, system.pinned)
 
-    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int):
-        """Solve ``H(x, xdir) d = rhs`` for an :class:`~filters.linalg.protocol.ImplicitSystem`.
+    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int, diagonal=None):
+        """Solve ``(H(x, xdir) + diagonal) d = rhs`` for an
+        :class:`~filters.linalg.protocol.ImplicitSystem`.
 
         Parameters
         ----------
@@ -168,6 +176,9 @@ class LinearSolver:
             Relative residual PCG must reach.
         max_iter : int
             PCG iteration limit.
+        diagonal : (N, 3, 3) float64, optional
+            Symmetric positive semi-definite blocks added to the particles' diagonal blocks
+            (contacts); ignored on pinned particles.
 
         Returns
         -------
@@ -177,14 +188,32 @@ class LinearSolver:
         direct : bool
             Whether a direct solve produced ``d``.
         """
-        op = system.implicit_operator(x, xdir, h) if self.method != "direct" else None
-        if op is not None:
+        op = self.operator(system, x, xdir, h, diagonal)
+        if not hasattr(op, "tocsc"):  # matrix-free
             d, it, res = pcg_operator(op, rhs, warm, tol=tol, max_iter=max_iter,
                                       preconditioner=self.preconditioner, omega=self.omega,
                                       workspace=self.workspace)
             if res <= tol or self.method == "pcg":
                 return d.ravel(), it, False
-            return direct_solve(system.system_matrix(x, xdir, h), rhs.ravel()), it, True
-        mat = system.system_matrix(x, xdir, h)
-        return solve_linear(mat, rhs.ravel(), warm, solver=self.method, tol=tol,
+            mat = system.system_matrix(x, xdir, h)
+            if diagonal is not None:
+                mat = add_block_diagonal(mat, diagonal, system.pinned)
+            return direct_solve(mat, rhs.ravel()), it, True
+        return solve_linear(op, rhs.ravel(), warm, solver=self.method, tol=tol,
                             max_iter=max_iter)
+
+    def product(self, system, x, xdir, h, p):
+        """``H(x, xdir) p`` for ``p`` (N, 3) (no added blocks), shaped like ``p``."""
+        op = self.operator(system, x, xdir, h)
+        return (op @ np.ascontiguousarray(p).ravel()).reshape(p.shape)
+
+
+def add_block_diagonal(matrix, blocks, pinned):
+    """``matrix + diag(blocks)`` for a CSR ``matrix`` (3N, 3N) and particle blocks (N, 3, 3),
+    leaving the rows and columns of ``pinned`` particles alone; a new CSR matrix."""
+    import scipy.sparse as sp
+
+    n = blocks.shape[0]
+    data = np.where(pinned[:, None, None], 0.0, blocks)
+    extra = sp.bsr_matrix((data, np.arange(n), np.arange(n + 1)), shape=matrix.shape)
+    return (matrix + extra).tocsr()

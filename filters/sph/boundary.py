@@ -26,15 +26,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numba import njit, prange
 
+from ..binning import cell_keys, counting_sort
 from ..geometry import Box
 from ..kernels import kernel_id, kernel_w
 from ..neighbors import NeighborSearch
 from ..validation import check_finite_vector, check_int, check_range
 
-__all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary",
+__all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary", "sort_boundary",
            "concatenate_boundaries"]
 
 
@@ -321,3 +323,32 @@ def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.
     volumes = _akinci_volumes(points, off, idx, kind, h)
     volumes *= _flat_wall_gamma(spacing, h, kind, kernel)
     return BoundaryParticles(points, volumes)
+
+
+def sort_boundary(boundary, cell):
+    """Boundary particles sorted by a grid of cubic cells of edge ``cell`` (m).
+
+    Returns ``(points, volumes, origin, dims, start)``: read-only (M, 3) and (M,) arrays in cell
+    order, the grid's lower corner and cells per axis, and the cell ranges (a stable counting
+    sort, :func:`filters.binning.counting_sort`).  ``boundary`` None or empty gives an empty set.
+    """
+    if boundary is not None and boundary.n_points:
+        bx = boundary.points
+        bv = boundary.volumes
+        blo = bx.min(axis=0)
+        bdims = (np.floor((bx.max(axis=0) - blo) / cell) + 1).astype(np.int64)
+        if float(np.prod(bdims.astype(np.float64))) > 2e8:
+            raise ValueError("boundary spans more than 2e8 grid cells; increase spacing")
+        keys = cell_keys(bx, blo, 1.0 / cell, bdims)
+        bstart, border = counting_sort(keys, int(np.prod(bdims)), numba.get_num_threads())
+        bx = np.ascontiguousarray(bx[border])
+        bv = np.ascontiguousarray(bv[border])
+    else:
+        bx = np.zeros((0, 3))
+        bv = np.zeros(0)
+        blo = np.zeros(3)
+        bdims = np.ones(3, dtype=np.int64)
+        bstart = np.zeros(2, dtype=np.int64)
+    bx.setflags(write=False)
+    bv.setflags(write=False)
+    return bx, bv, blo, bdims, bstart

@@ -49,7 +49,7 @@ resting fluid up does not depend on the step.  Both live in the simulation state
 checkpoint resumes bit for bit.  The warm starts are capped (``pi dt^2 <= 2.5e-4``, ``kappa_v <=
 0.5``, SPlisHSPlasH's values) and skipped where the particle is not compressed.
 
-One fused pass per step (:func:`_neighbourhood`) finds the neighbours of the cell-sorted
+One fused pass per step (:func:`filters.sph.neighbourhood.neighbourhood_pass`) finds the neighbours of the cell-sorted
 particles afresh (a DFSPH step moves particles farther than a Verlet skin could cover) and
 computes densities, ``alpha_i`` and the kernel gradients, stored as one float32 scalar per pair.
 
@@ -65,9 +65,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..kernels import kernel_w, kernel_w_dw
+from .neighbourhood import boundary_reach_mask, neighbourhood_pass
+from .viscosity import ImplicitViscosity
 
-__all__ = ["DFSPHSolver", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
+__all__ = ["DFSPHSolver", "boundary_reach_mask", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
            "DFSPH_MIN_NEIGHBOURS"]
 
 #: Cap of the density solver's warm start, as ``pi dt^2`` (dimensionless).
@@ -83,209 +84,6 @@ _OMEGA = 0.5
 # --------------------------------------------------------------------------------------------
 # Numba kernels.
 # --------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always", error_model="numpy")
-def _cells(q, origin, inv_cell, dim):
-    """First and last cell index (clamped) within two cells of coordinate ``q``."""
-    f = math.floor((q - origin) * inv_cell)
-    lo = min(max(f - 2.0, 0.0), float(dim))
-    hi = max(min(f + 2.0, dim - 1.0), -1.0)
-    return int(lo), int(hi)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _gap(q, lo_edge, hi_edge):
-    if q < lo_edge:
-        return lo_edge - q
-    if q > hi_edge:
-        return q - hi_edge
-    return 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def boundary_reach_mask(xb, origin, cell, dims):
-    """Cells of a grid (edge ``cell``) that have a boundary particle within two cells per axis:
-    a fluid particle whose cell is not marked has no boundary neighbour within ``2 cell``."""
-    mask = np.zeros(dims[0] * dims[1] * dims[2], dtype=np.bool_)
-    inv = 1.0 / cell
-    for b in range(xb.shape[0]):
-        x0, x1 = _cells(xb[b, 0], origin[0], inv, dims[0])
-        y0, y1 = _cells(xb[b, 1], origin[1], inv, dims[1])
-        z0, z1 = _cells(xb[b, 2], origin[2], inv, dims[2])
-        for iz in range(z0, z1 + 1):
-            for iy in range(y0, y1 + 1):
-                row = (iz * dims[1] + iy) * dims[0]
-                for ix in range(x0, x1 + 1):
-                    mask[row + ix] = True
-    return mask
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _home(q, origin, inv_cell, dim):
-    return min(max(int(math.floor((q - origin) * inv_cell)), 0), dim - 1)
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _neighbourhood(x, start, origin, cell, dims, xb, bstart, borigin, bcell, bdims, bmask, bvol,
-                   bpsi, vol, mass, h, kind, ntab, ncnt, fw, gsum, factor, nnb, rho, fsum, bvis):
-    """One fused pass per step: neighbours within ``h``, kernel gradients, density, ``alpha_i``.
-
-    ``x`` must be sorted by the grid of cell ``cell`` (``h / 2`` padded) whose cell ranges are
-    ``start`` (a counting sort of ``x`` itself); ``xb`` likewise for ``bstart``, and ``bmask``
-    (:func:`boundary_reach_mask`) marks the boundary cells worth scanning.  Each particle scans
-    the 5 x 5 rows of 5 consecutive cells around it (rows farther than ``h`` skipped), so its
-    neighbours come in a fixed order that depends only on the positions: results are
-    bit-identical for any thread count.  The scan only collects candidates (branch-free: every
-    candidate is written, the count advances on hits); the kernels are evaluated on the hits.
-
-    Writes, per particle ``i``: ``ntab[i, :ncnt[i]]`` the fluid neighbours ``j != i`` with
-    ``r < h``; ``fw[i, k] = V_j W'(r_ij) / r_ij`` (float32, 1/m^2), so that ``V_j grad W_ij =
-    fw[i, k] (x_i - x_j)`` (storing this scalar instead of the gradient vector halves what
-    every solver iteration reads; ``fw`` is symmetric, so pair forces stay antisymmetric);
-    ``gsum_i = sum_j V_j grad W_ij +
-    sum_b V_b grad W_ib`` (1/m); ``factor_i = alpha_i`` (m^2, Bender & Koschier 2017, eq. 11,
-    with rest volumes); ``nnb_i`` the number of neighbours (fluid and boundary); ``rho_i``
-    (kg/m^3, by summation); ``fsum_i = sum_j fw_ij`` (1/m^2), which gives the fluid part of
-    the implicit viscosity's diagonal; and the boundary's viscosity block ``bvis_i = sum_b V_b
-    (W'(r) / r) x_ib x_ib^T / (r^2 + 0.01 h'^2)`` (1/m^3, xx yy zz xy xz yz).  ``ntab`` has one
-    spare column.  Returns the largest neighbour count: above ``ntab.shape[1] - 1`` the tables
-    are truncated and the call must be repeated with wider ones.
-    """
-    n = x.shape[0]
-    cap = ntab.shape[1] - 1
-    h2 = h * h
-    margin = h2 * (1.0 + 1e-6)
-    eps = 0.01 * 0.25 * h2
-    inv = 1.0 / cell
-    binv = 1.0 / bcell
-    w0 = kernel_w(kind, 0.0, h)
-    best = np.zeros(n, dtype=np.int64)
-    nbd = xb.shape[0]
-    for i in prange(n):
-        qx = x[i, 0]
-        qy = x[i, 1]
-        qz = x[i, 2]
-        # -- collect the fluid neighbours (branch-free compaction into the row) --------------
-        c = 0
-        x0, x1 = _cells(qx, origin[0], inv, dims[0])
-        y0, y1 = _cells(qy, origin[1], inv, dims[1])
-        z0, z1 = _cells(qz, origin[2], inv, dims[2])
-        for iz in range(z0, z1 + 1):
-            gz = _gap(qz, origin[2] + iz * cell, origin[2] + (iz + 1) * cell)
-            for iy in range(y0, y1 + 1):
-                gy = _gap(qy, origin[1] + iy * cell, origin[1] + (iy + 1) * cell)
-                if gy * gy + gz * gz > margin:
-                    continue
-                row = (iz * dims[1] + iy) * dims[0]
-                for j in range(start[row + x0], start[row + x1 + 1]):
-                    dx = qx - x[j, 0]
-                    dy = qy - x[j, 1]
-                    dz = qz - x[j, 2]
-                    ntab[i, min(c, cap)] = j
-                    c += (dx * dx + dy * dy + dz * dz < h2) & (j != i)
-        best[i] = c
-        c = min(c, cap)
-        ncnt[i] = c
-        # -- kernels on the hits ---------------------------------------------------------------
-        sw = w0
-        sx = 0.0
-        sy = 0.0
-        sz = 0.0
-        sq = 0.0
-        sf = 0.0
-        for k in range(c):
-            j = ntab[i, k]
-            dx = qx - x[j, 0]
-            dy = qy - x[j, 1]
-            dz = qz - x[j, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            r = math.sqrt(r2)
-            w, dw = kernel_w_dw(kind, r, h)
-            sw += w
-            f = vol * dw / r if r > 0.0 else 0.0  # coincident: no gradient
-            f32 = np.float32(f)
-            fw[i, k] = f32
-            f = np.float64(f32)  # the sums below use what the solves will use
-            gx = f * dx
-            gy = f * dy
-            gz = f * dz
-            sx += gx
-            sy += gy
-            sz += gz
-            sq += gx * gx + gy * gy + gz * gz
-            sf += f
-        fsum[i] = sf
-        # -- boundary particles (static; only where the mask says some are within reach) -------
-        bx = 0.0
-        by = 0.0
-        bz = 0.0
-        sb = 0.0
-        nb = 0
-        u0 = 0.0
-        u1 = 0.0
-        u2 = 0.0
-        u3 = 0.0
-        u4 = 0.0
-        u5 = 0.0
-        home = (_home(qz, borigin[2], binv, bdims[2]) * bdims[1]
-                + _home(qy, borigin[1], binv, bdims[1])) * bdims[0] + _home(
-                    qx, borigin[0], binv, bdims[0])
-        if nbd > 0 and bmask[home]:
-            x0, x1 = _cells(qx, borigin[0], binv, bdims[0])
-            y0, y1 = _cells(qy, borigin[1], binv, bdims[1])
-            z0, z1 = _cells(qz, borigin[2], binv, bdims[2])
-            for iz in range(z0, z1 + 1):
-                gz = _gap(qz, borigin[2] + iz * bcell, borigin[2] + (iz + 1) * bcell)
-                for iy in range(y0, y1 + 1):
-                    gy = _gap(qy, borigin[1] + iy * bcell, borigin[1] + (iy + 1) * bcell)
-                    if gy * gy + gz * gz > margin:
-                        continue
-                    row = (iz * bdims[1] + iy) * bdims[0]
-                    for b in range(bstart[row + x0], bstart[row + x1 + 1]):
-                        dx = qx - xb[b, 0]
-                        dy = qy - xb[b, 1]
-                        dz = qz - xb[b, 2]
-                        r2 = dx * dx + dy * dy + dz * dz
-                        if r2 >= h2:
-                            continue
-                        r = math.sqrt(r2)
-                        w, dw = kernel_w_dw(kind, r, h)
-                        sb += bpsi[b] * w
-                        if r2 == 0.0:
-                            continue
-                        f = bvol[b] * dw / r
-                        bx += f * dx
-                        by += f * dy
-                        bz += f * dz
-                        nb += 1
-                        q = f / (r2 + eps)
-                        u0 += q * dx * dx
-                        u1 += q * dy * dy
-                        u2 += q * dz * dz
-                        u3 += q * dx * dy
-                        u4 += q * dx * dz
-                        u5 += q * dy * dz
-        bvis[i, 0] = u0
-        bvis[i, 1] = u1
-        bvis[i, 2] = u2
-        bvis[i, 3] = u3
-        bvis[i, 4] = u4
-        bvis[i, 5] = u5
-        nnb[i] = c + nb
-        rho[i] = mass * sw + sb
-        sx += bx
-        sy += by
-        sz += bz
-        gsum[i, 0] = sx
-        gsum[i, 1] = sy
-        gsum[i, 2] = sz
-        den = sx * sx + sy * sy + sz * sz + sq
-        factor[i] = 1.0 / den if den > 1e-9 / h2 else 0.0
-    top = 0
-    for i in range(n):
-        top = max(top, best[i])
-    return top
-
-
 @njit(parallel=True, cache=True, error_model="numpy")
 def _density_rate(v, x, ntab, ncnt, fw, gsum, out):
     """``(D rho_i / D t) / rho0 = sum_j V_j (v_i - v_j) . grad W_ij + v_i . sum_b V_b grad
@@ -406,100 +204,6 @@ def _drift(x, v, dt):
     return math.sqrt(best)
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _visc_apply(u, x, ntab, ncnt, fw, bvis, cf, cb, h, out):
-    """``out = u - dt L u`` for the implicit viscosity of Weiler et al. (2018), with
-    ``cf = 10 nu dt`` and ``cb = 10 nu_b dt`` (``2 (d + 2) = 10``)::
-
-        (L u)_i = 10 nu sum_j V_j (u_ij . x_ij) / (r^2 + 0.01 h'^2) grad W_ij
-                + 10 nu_b sum_b V_b (u_i . x_ib) / (r^2 + 0.01 h'^2) grad W_ib .
-    """
-    eps = 0.01 * 0.25 * h * h
-    for i in prange(u.shape[0]):
-        ux = u[i, 0]
-        uy = u[i, 1]
-        uz = u[i, 2]
-        sx = 0.0
-        sy = 0.0
-        sz = 0.0
-        for k in range(ncnt[i]):
-            j = ntab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            q = fw[i, k] * ((ux - u[j, 0]) * dx + (uy - u[j, 1]) * dy + (uz - u[j, 2]) * dz) / (
-                dx * dx + dy * dy + dz * dz + eps)
-            sx += q * dx
-            sy += q * dy
-            sz += q * dz
-        b = bvis[i]
-        out[i, 0] = ux - cf * sx - cb * (b[0] * ux + b[3] * uy + b[4] * uz)
-        out[i, 1] = uy - cf * sy - cb * (b[3] * ux + b[1] * uy + b[5] * uz)
-        out[i, 2] = uz - cf * sz - cb * (b[4] * ux + b[5] * uy + b[2] * uz)
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _visc_precond(fsum, bvis, cf, cb, pinv):
-    """Inverse of the 3x3 blocks ``(1 - cf fsum_i / 3) I - cb bvis_i``, which approximate the
-    diagonal blocks of ``I - dt L`` (the fluid part by its trace, ``sum_j fw_ij r^2 / (r^2 +
-    0.01 h'^2) / 3`` with the factor ``r^2 / (r^2 + 0.01 h'^2) >= 0.99`` at the distances where
-    neighbours sit dropped): a block-Jacobi preconditioner (``fsum``, ``bvis`` from
-    :func:`_neighbourhood`)."""
-    for i in prange(fsum.shape[0]):
-        d = 1.0 - cf * fsum[i] / 3.0
-        a00 = d - cb * bvis[i, 0]
-        a11 = d - cb * bvis[i, 1]
-        a22 = d - cb * bvis[i, 2]
-        a01 = -cb * bvis[i, 3]
-        a02 = -cb * bvis[i, 4]
-        a12 = -cb * bvis[i, 5]
-        c00 = a11 * a22 - a12 * a12
-        c01 = a02 * a12 - a01 * a22
-        c02 = a01 * a12 - a02 * a11
-        det = a00 * c00 + a01 * c01 + a02 * c02
-        inv = 1.0 / det
-        pinv[i, 0] = c00 * inv
-        pinv[i, 1] = (a00 * a22 - a02 * a02) * inv
-        pinv[i, 2] = (a00 * a11 - a01 * a01) * inv
-        pinv[i, 3] = c01 * inv
-        pinv[i, 4] = c02 * inv
-        pinv[i, 5] = (a02 * a01 - a00 * a12) * inv
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _precond_apply(pinv, r, z):
-    for i in prange(r.shape[0]):
-        p = pinv[i]
-        z[i, 0] = p[0] * r[i, 0] + p[3] * r[i, 1] + p[4] * r[i, 2]
-        z[i, 1] = p[3] * r[i, 0] + p[1] * r[i, 1] + p[5] * r[i, 2]
-        z[i, 2] = p[4] * r[i, 0] + p[5] * r[i, 1] + p[2] * r[i, 2]
-
-
-@njit(cache=True, error_model="numpy")
-def _dot(a, b):
-    """Serial dot product of two (N, 3) arrays (fixed order: deterministic)."""
-    s = 0.0
-    for i in range(a.shape[0]):
-        s += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
-    return s
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _axpy(y, alpha, x):
-    """``y += alpha x``."""
-    for i in prange(y.shape[0]):
-        for c in range(3):
-            y[i, c] += alpha * x[i, c]
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _xpby(z, beta, p):
-    """``p = z + beta p``."""
-    for i in prange(p.shape[0]):
-        for c in range(3):
-            p[i, c] = z[i, c] + beta * p[i, c]
-
-
 # --------------------------------------------------------------------------------------------
 # The solver object.
 # --------------------------------------------------------------------------------------------
@@ -550,6 +254,7 @@ class DFSPHSolver:
         self.viscosity_iterations = 0
         self._n = -1
         self._cap = 40
+        self._viscosity = ImplicitViscosity()
 
     def _allocate(self, n, cap):
         if n != self._n:
@@ -604,7 +309,7 @@ class DFSPHSolver:
         xb, bstart, borigin, bcell, bdims, bmask, bvol, bpsi = boundary
         while True:
             self._allocate(n, self._cap)
-            best = _neighbourhood(x, start, origin, cell, dims, xb, bstart, borigin, bcell,
+            best = neighbourhood_pass(x, start, origin, cell, dims, xb, bstart, borigin, bcell,
                                   bdims, bmask, bvol, bpsi, self.volume, mass, self.support, self.kind,
                                   self.ntab, self.ncnt, self.fw, self.gsum, self.factor,
                                   self.nnb, self.rho, self.fsum, self.bvis)
@@ -708,45 +413,8 @@ class DFSPHSolver:
         nu, nu_b : float
             Kinematic viscosity of the fluid and against the boundary (m^2/s).
         """
-        n = v.shape[0]
-        if n == 0 or (nu <= 0.0 and nu_b <= 0.0):
-            self.viscosity_iterations = 0
-            return 0
-        cf = 10.0 * nu * dt
-        cb = 10.0 * nu_b * dt
-        h = self.support
-        if getattr(self, "_vn", -1) != n:
-            self._pinv = np.empty((n, 6))
-            self._r = np.empty((n, 3))
-            self._z = np.empty((n, 3))
-            self._p = np.empty((n, 3))
-            self._q = np.empty((n, 3))
-            self._vn = n
-        pinv, r, z, p, q = self._pinv, self._r, self._z, self._p, self._q
-        b = v.copy()
-        _visc_precond(self.fsum, self.bvis, cf, cb, pinv)
-        _visc_apply(v, x, self.ntab, self.ncnt, self.fw, self.bvis, cf, cb, h, q)
-        r[:] = b
-        r -= q
-        bnorm2 = _dot(b, b)
-        _precond_apply(pinv, r, z)
-        p[:] = z
-        rz = _dot(r, z)
-        it = 0
-        tol2 = tolerance * tolerance * bnorm2
-        while it < max_iterations and _dot(r, r) > tol2:
-            _visc_apply(p, x, self.ntab, self.ncnt, self.fw, self.bvis, cf, cb, h, q)
-            pq = _dot(p, q)
-            if not pq > 0.0:
-                break
-            alpha = rz / pq
-            _axpy(v, alpha, p)
-            _axpy(r, -alpha, q)
-            _precond_apply(pinv, r, z)
-            rz_new = _dot(r, z)
-            _xpby(z, rz_new / rz, p)
-            rz = rz_new
-            it += 1
+        it = self._viscosity.solve(v, x, dt, nu, nu_b, self.ntab, self.ncnt, self.fw,
+                                   self.fsum, self.bvis, self.support, tolerance, max_iterations)
         self.viscosity_iterations = it
         return it
 

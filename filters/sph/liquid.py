@@ -5,34 +5,8 @@ the equation of state by the two implicit pressure solves of Bender & Koschier (
 :mod:`filters.sph.dfsph` (same neighbour lists, boundary particles, viscosity, surface tension,
 external fields, state and checkpoints; steps from the velocity CFL condition only).
 
-The method (WCSPH)
-------------------
-* Density by summation, ``rho_i = sum_j m W_ij + sum_b rho0 V_b W_ib`` (fluid and boundary).
-* Tait equation of state (Becker & Teschner 2007, after Monaghan 1994)
-  ``p = B ((rho / rho0)^gamma - 1)``, ``B = rho0 c^2 / gamma``, ``gamma = 7``, with the density
-  clamped at ``rho0`` from below (no tension at the free surface).  The speed of sound ``c`` is ten
-  times the largest expected speed ``sqrt(2 g H)`` unless given, which keeps density errors
-  around 1 % (Monaghan 1994: ``|drho| / rho0 ~ (v / c)^2``).
-* Pressure acceleration ``-sum_j m (p_i / rho_i^2 + p_j / rho_j^2) grad W_ij``; boundary particles
-  (Akinci et al. 2012) act with mass ``rho0 V_b`` and a pressure extrapolated from the fluid
-  including the hydrostatic term (Adami, Hu & Adams 2012, "A generalized wall boundary condition
-  for smoothed particle hydrodynamics", JCP 231), or optionally the fluid particle's own pressure
-  mirrored onto them.
-* Artificial viscosity (Monaghan 1992) ``Pi_ij = -alpha c mu_ij / rho_bar_ij`` with
-  ``mu_ij = h' v_ij . x_ij / (|x_ij|^2 + 0.01 h'^2)`` for approaching pairs (``h' = h / 2``, the
-  smoothing length), also against the (static) boundary particles, which gives wall friction;
-  optional XSPH velocity smoothing (Monaghan 1989) with factor ``xsph``.
-* Surface tension and cohesion of Akinci, Akinci & Teschner (2013): a cohesion force with the
-  spline ``C(r)`` (repulsive closer than ``h / 2``, attractive out to ``h``, zero beyond) plus the
-  curvature term on the normals ``n_i = h sum_j m / rho_j grad W_ij``, both scaled by
-  ``2 rho0 / (rho_i + rho_j)``.
-* External accelerations: gravity (default ``(0, 0, -9.81)``) plus an optional field, a callable
-  ``field(positions, velocities, time) -> (N, 3)`` or an object with such an ``acceleration``
-  method.
-* Symplectic (semi-implicit) Euler, ``v += dt a; x += dt v``, with an adaptive step
-  (:meth:`SPHLiquid.max_step`): the CFL condition with Monaghan's viscous term
-  ``dt <= cfl h' / (c (1 + 0.6 alpha) + |v|_max)`` and the force condition
-  ``dt <= 0.25 sqrt(h' / |a|_max)`` (Monaghan 1992; Becker & Teschner 2007).
+The WCSPH method (equation of state, forces, boundary pressures, the adaptive step) is
+described in :mod:`filters.sph.forces`, with its references.
 
 Neighbour lists are Verlet lists: built with a skin (radius ``h (1 + skin)``) by the uniform
 grid of :mod:`filters.neighbors` and reused by every pass until some particle has moved half the
@@ -44,16 +18,16 @@ permutations.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numba import njit, prange
 
-from .boundary import BoundaryParticles, lattice_volume
+from .boundary import BoundaryParticles, lattice_volume, sort_boundary
 from .dfsph import DFSPHSolver, boundary_reach_mask
-from ..kernels import cohesion_c, kernel_dw, kernel_id, kernel_w
-from ..binning import cell_keys as _grid_keys, counting_sort as _counting_sort
+from . import forces, particles
+from .model import SPHModel, as_field, check_boxes, default_support_factor
+from ..kernels import kernel_id
+from ..binning import cell_keys, counting_sort
 from ..neighbors import bounds, grid_query_padded
 from ..simulation import OutputSpec, Simulation, SimulationUnstableError, State, Frame
 from ..validation import check_choice, check_finite_vector, check_int, check_range
@@ -61,395 +35,12 @@ from ..validation import check_choice, check_finite_vector, check_int, check_ran
 __all__ = ["SPHModel", "SPHLiquid", "default_support_factor"]
 
 
-def default_support_factor(kernel: str) -> float:
-    """Default support radius over particle spacing for ``kernel``: 2 (cubic), 2.5 (wendland)."""
-    return 2.5 if kernel == "wendland" else 2.0
-
 _CELL_PAD = 1.0 + 1e-9
 _DFSPH_MAX_DT = 0.005  # s, default largest DFSPH step
 _DFSPH_MIN_DT = 1e-5  # s, smallest DFSPH step (a faster fluid is a blow-up here)
 _DFSPH_BUSY = 20  # density-solve iterations above which the next step shrinks
 _DFSPH_EASY = 10  # ... below which it may grow again
 _REACH = 2  # grid cells per support radius (see filters.neighbors)
-
-
-@dataclass(frozen=True)
-class SPHModel:
-    """Fixed parameters of :class:`SPHLiquid` (SI units).
-
-    Attributes
-    ----------
-    spacing : float
-        Initial particle spacing (m).
-    support : float
-        Kernel support radius ``h`` (m).
-    kernel : str
-        Smoothing kernel name.
-    rest_density : float
-        ``rho0`` (kg/m^3).
-    mass : float
-        Particle mass (kg): ``rho0 * lattice_volume(spacing, h)``.
-    speed_of_sound : float
-        ``c`` (m/s).
-    gamma : float
-        Tait exponent.
-    viscosity : float
-        Artificial viscosity ``alpha``.
-    boundary_viscosity : float
-        ``alpha`` against boundary particles (wall friction).
-    xsph : float
-        XSPH factor ``epsilon`` in [0, 1).
-    surface_tension : float
-        Akinci et al. (2013) coefficient ``gamma_st`` (1/s^2 scale; 0 disables).
-    gravity : tuple of 3 float
-        (m/s^2).
-    cfl : float
-        Courant number.
-    max_dt : float
-        Largest step (s).
-    density_error_limit : float
-        Largest tolerated relative compression ``max (rho - rho0) / rho0``.
-    domain : tuple of two tuples of 3 float or None
-        Box that particles must stay in (m), or None.
-    container : tuple of two tuples of 3 float or None
-        Inner walls of a box tank (m) that particles are projected back into, or None.
-    boundary_pressure : {"adami", "mirror"}
-        How boundary particles get a pressure.
-    boundary_points, boundary_volumes : read-only arrays
-        Boundary particles sorted by cell, (M, 3) m and (M,) m^3.
-    solver : {"wcsph", "dfsph"}
-        Pressure solver.
-    max_density_error, max_divergence_error : float
-        DFSPH tolerances (fractions of ``rho0``; the second per step).
-    max_iterations : int
-        Most iterations of each DFSPH solve.
-    """
-
-    spacing: float
-    support: float
-    kernel: str
-    rest_density: float
-    mass: float
-    speed_of_sound: float
-    gamma: float
-    viscosity: float
-    boundary_viscosity: float
-    xsph: float
-    surface_tension: float
-    gravity: tuple
-    cfl: float
-    max_dt: float
-    density_error_limit: float
-    domain: tuple | None
-    container: tuple | None
-    boundary_pressure: str
-    boundary_points: np.ndarray
-    boundary_volumes: np.ndarray
-    solver: str = "wcsph"
-    max_density_error: float = 1e-3
-    max_divergence_error: float = 1e-2
-    max_iterations: int = 100
-
-
-# --------------------------------------------------------------------------------------------
-# Numba kernels.
-# --------------------------------------------------------------------------------------------
-@njit(parallel=True, cache=True, error_model="numpy")
-def _permute(x, v, ids, order, xo, vo, io):
-    for k in prange(order.shape[0]):
-        i = order[k]
-        for c in range(3):
-            xo[k, c] = x[i, c]
-            vo[k, c] = v[i, c]
-        io[k] = ids[i]
-
-
-@njit(cache=True, error_model="numpy")
-def _is_identity(order):
-    for k in range(order.shape[0]):
-        if order[k] != k:
-            return False
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def _max_displacement2(x, anchor):
-    best = 0.0
-    for i in range(x.shape[0]):
-        dx = x[i, 0] - anchor[i, 0]
-        dy = x[i, 1] - anchor[i, 1]
-        dz = x[i, 2] - anchor[i, 2]
-        best = max(best, dx * dx + dy * dy + dz * dz)
-    return best
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _sort_rows(tab, cnt):
-    """Sort every row ``tab[i, :cnt[i]]`` ascending (insertion sort: rows are short)."""
-    for i in prange(tab.shape[0]):
-        for a in range(1, cnt[i]):
-            v = tab[i, a]
-            b = a - 1
-            while b >= 0 and tab[i, b] > v:
-                tab[i, b + 1] = tab[i, b]
-                b -= 1
-            tab[i, b + 1] = v
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _density(x, tab, cnt, xb, btab, bcnt, bpsi, m, h, kind, rho):
-    """rho_i = m W(0) + sum_j m W_ij + sum_b psi_b W_ib (kg/m^3)."""
-    w0 = kernel_w(kind, 0.0, h)
-    h2 = h * h
-    for i in prange(x.shape[0]):
-        s = 0.0
-        for k in range(cnt[i]):
-            j = tab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 < h2:
-                s += kernel_w(kind, math.sqrt(r2), h)
-        sb = 0.0
-        for k in range(bcnt[i]):
-            b = btab[i, k]
-            dx = x[i, 0] - xb[b, 0]
-            dy = x[i, 1] - xb[b, 1]
-            dz = x[i, 2] - xb[b, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 < h2:
-                sb += bpsi[b] * kernel_w(kind, math.sqrt(r2), h)
-        rho[i] = m * (w0 + s) + sb
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _tait(rho, rho0, stiffness, gamma, p):
-    """Tait pressure with the density clamped at rho0; returns the largest compression."""
-    n = rho.shape[0]
-    err = 0.0
-    for i in prange(n):
-        r = rho[i] / rho0
-        if r < 1.0:
-            r = 1.0
-        p[i] = stiffness * (r ** gamma - 1.0)
-        err = max(err, r - 1.0)
-    return err
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _normals(x, rho, tab, cnt, m, h, kind, nrm):
-    """Akinci et al. (2013) surface normals n_i = h sum_j m / rho_j grad W_ij (dimensionless)."""
-    for i in prange(x.shape[0]):
-        nx = 0.0
-        ny = 0.0
-        nz = 0.0
-        for k in range(cnt[i]):
-            j = tab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 > 0.0 and r2 < h * h:
-                r = math.sqrt(r2)
-                f = m / rho[j] * kernel_dw(kind, r, h) / r
-                nx += f * dx
-                ny += f * dy
-                nz += f * dz
-        nrm[i, 0] = h * nx
-        nrm[i, 1] = h * ny
-        nrm[i, 2] = h * nz
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _accelerations(x, v, rho, p, tab, cnt, xb, btab, bcnt, bpsi, bpr, m, h, kind, alpha,
-                   alpha_b, c, rho0, st, nrm, g, a):
-    """Pressure, viscosity, surface tension and gravity accelerations (m/s^2) into ``a``.
-
-    ``bpr[b]`` is ``p_b / rho_b^2`` of boundary particle ``b`` (Adami et al. 2012), or negative
-    for pressure mirroring (``p_b / rho_b^2 = p_i / rho_i^2``, Akinci et al. 2012).
-    Returns ``max |a|``.
-    """
-    n = x.shape[0]
-    hs = 0.5 * h
-    eps = 0.01 * hs * hs
-    h2 = h * h
-    amax = np.zeros(n)
-    for i in prange(n):
-        ri = rho[i]
-        pi_ = p[i] / (ri * ri)
-        ax = g[0]
-        ay = g[1]
-        az = g[2]
-        for k in range(cnt[i]):
-            j = tab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 == 0.0 or r2 >= h2:
-                continue
-            r = math.sqrt(r2)
-            rj = rho[j]
-            fac = -m * (pi_ + p[j] / (rj * rj))
-            vd = (v[i, 0] - v[j, 0]) * dx + (v[i, 1] - v[j, 1]) * dy + (v[i, 2] - v[j, 2]) * dz
-            if vd < 0.0 and alpha > 0.0:
-                mu = hs * vd / (r2 + eps)
-                fac += m * alpha * c * mu / (0.5 * (ri + rj))
-            fw = fac * kernel_dw(kind, r, h) / r
-            ax += fw * dx
-            ay += fw * dy
-            az += fw * dz
-            if st > 0.0:
-                kij = 2.0 * rho0 / (ri + rj)
-                cc = m * cohesion_c(r, h) / r
-                ax -= st * kij * (cc * dx + nrm[i, 0] - nrm[j, 0])
-                ay -= st * kij * (cc * dy + nrm[i, 1] - nrm[j, 1])
-                az -= st * kij * (cc * dz + nrm[i, 2] - nrm[j, 2])
-        for k in range(bcnt[i]):
-            b = btab[i, k]
-            dx = x[i, 0] - xb[b, 0]
-            dy = x[i, 1] - xb[b, 1]
-            dz = x[i, 2] - xb[b, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 == 0.0 or r2 >= h2:
-                continue
-            r = math.sqrt(r2)
-            fac = -bpsi[b] * (pi_ + (pi_ if bpr[b] < 0.0 else bpr[b]))
-            vd = v[i, 0] * dx + v[i, 1] * dy + v[i, 2] * dz
-            if vd < 0.0 and alpha_b > 0.0:
-                mu = hs * vd / (r2 + eps)
-                fac += bpsi[b] * alpha_b * c * mu / ri
-            fw = fac * kernel_dw(kind, r, h) / r
-            ax += fw * dx
-            ay += fw * dy
-            az += fw * dz
-        a[i, 0] = ax
-        a[i, 1] = ay
-        a[i, 2] = az
-        amax[i] = math.sqrt(ax * ax + ay * ay + az * az)
-    return amax.max() if n else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _boundary_pressure(x, rho, p, xb, btab, bcnt, h, kind, g, rho0, stiffness, gamma, mirror, bpr):
-    """Boundary pressures extrapolated from the fluid (Adami, Hu & Adams 2012, static walls):
-
-    ``p_b = (sum_f p_f W_bf + g . sum_f rho_f (x_b - x_f) W_bf) / sum_f W_bf``, clamped at 0,
-    stored as ``p_b / rho_b^2`` with ``rho_b`` from the inverse Tait equation.  A boundary
-    particle without fluid neighbours gets ``-1`` (mirroring).  Serial scatter over the fluid's
-    boundary lists (only particles near walls have any), so no races.
-    """
-    nb = xb.shape[0]
-    num = np.zeros(nb)
-    den = np.zeros(nb)
-    for i in range(x.shape[0]):
-        for k in range(bcnt[i]):
-            b = btab[i, k]
-            dx = xb[b, 0] - x[i, 0]
-            dy = xb[b, 1] - x[i, 1]
-            dz = xb[b, 2] - x[i, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 >= h * h:
-                continue
-            w = kernel_w(kind, math.sqrt(r2), h)
-            num[b] += (p[i] + rho[i] * (g[0] * dx + g[1] * dy + g[2] * dz)) * w
-            den[b] += w
-    for b in range(nb):
-        if mirror or den[b] <= 0.0:
-            bpr[b] = -1.0
-        else:
-            pb = max(num[b] / den[b], 0.0)
-            rb = rho0 * (pb / stiffness + 1.0) ** (1.0 / gamma)
-            bpr[b] = pb / (rb * rb)
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _integrate(x, v, a, dt):
-    """Symplectic Euler; returns max |v| after the step."""
-    n = x.shape[0]
-    vmax = np.zeros(n)
-    for i in prange(n):
-        s = 0.0
-        for c in range(3):
-            v[i, c] += dt * a[i, c]
-            s += v[i, c] * v[i, c]
-        vmax[i] = s
-    for i in prange(n):
-        for c in range(3):
-            x[i, c] += dt * v[i, c]
-    return math.sqrt(vmax.max()) if n else 0.0
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _xsph(v, rho, x, tab, cnt, m, h, kind, eps, out):
-    """XSPH smoothing v_i + eps sum_j 2 m / (rho_i + rho_j) (v_j - v_i) W_ij (Monaghan 1989)."""
-    for i in prange(v.shape[0]):
-        sx = 0.0
-        sy = 0.0
-        sz = 0.0
-        for k in range(cnt[i]):
-            j = tab[i, k]
-            dx = x[i, 0] - x[j, 0]
-            dy = x[i, 1] - x[j, 1]
-            dz = x[i, 2] - x[j, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 >= h * h:
-                continue
-            f = 2.0 * m / (rho[i] + rho[j]) * kernel_w(kind, math.sqrt(r2), h)
-            sx += f * (v[j, 0] - v[i, 0])
-            sy += f * (v[j, 1] - v[i, 1])
-            sz += f * (v[j, 2] - v[i, 2])
-        out[i, 0] = v[i, 0] + eps * sx
-        out[i, 1] = v[i, 1] + eps * sy
-        out[i, 2] = v[i, 2] + eps * sz
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _contain(x, v, lo, hi):
-    """Project particles outside the box [lo, hi] back onto it and zero the outward velocity
-    component (an inelastic, frictionless wall); returns how many were corrected."""
-    n = x.shape[0]
-    hits = np.zeros(n, dtype=np.int64)
-    for i in prange(n):
-        for c in range(3):
-            if x[i, c] < lo[c]:
-                x[i, c] = lo[c]
-                if v[i, c] < 0.0:
-                    v[i, c] = 0.0
-                hits[i] = 1
-            elif x[i, c] > hi[c]:
-                x[i, c] = hi[c]
-                if v[i, c] > 0.0:
-                    v[i, c] = 0.0
-                hits[i] = 1
-    return hits.sum()
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _outside(x, lo, hi):
-    """Index of a particle outside [lo, hi] (the smallest such index), or -1."""
-    n = x.shape[0]
-    bad = np.full(n, False)
-    for i in prange(n):
-        for c in range(3):
-            if not (x[i, c] >= lo[c] and x[i, c] <= hi[c]):
-                bad[i] = True
-    for i in range(n):
-        if bad[i]:
-            return i
-    return -1
-
-
-def _as_field(external):
-    if external is None:
-        return None
-    if hasattr(external, "acceleration") and callable(external.acceleration):
-        return external.acceleration
-    if callable(external):
-        return external
-    raise TypeError("external must be None, a callable field(positions, velocities, time) -> (N, 3) "
-                    f"or an object with such an acceleration method; got {type(external).__name__}")
 
 
 class SPHLiquid(Simulation):
@@ -597,7 +188,7 @@ class SPHLiquid(Simulation):
         xsph = check_range("xsph", xsph, 0.0, 1.0, high_inclusive=False)
         surface_tension = check_range("surface_tension", surface_tension, 0.0, 100.0)
         gravity = check_finite_vector("gravity", gravity, 3)
-        field = _as_field(external)
+        field = as_field(external)
         cfl = check_range("cfl", cfl, 0.0, 1.0, low_inclusive=False)
         check_choice("solver", solver, ("wcsph", "dfsph"))
         if max_dt is None:
@@ -623,26 +214,7 @@ class SPHLiquid(Simulation):
         if state.n_points == 0:
             raise ValueError("positions must contain at least one particle")
         x = state.positions
-        if domain is not None:
-            lo = check_finite_vector("domain[0]", domain[0], 3)
-            hi = check_finite_vector("domain[1]", domain[1], 3)
-            if not (hi > lo).all():
-                raise ValueError("domain upper corner must exceed the lower corner")
-            domain = (tuple(lo), tuple(hi))
-        elif boundary is not None and boundary.n_points:
-            domain = (tuple(boundary.points.min(axis=0)), tuple(boundary.points.max(axis=0)))
-        if container is not None:
-            clo = check_finite_vector("container[0]", container[0], 3)
-            chi = check_finite_vector("container[1]", container[1], 3)
-            if not (chi > clo).all():
-                raise ValueError("container upper corner must exceed the lower corner")
-            if ((x < clo) | (x > chi)).any():
-                raise ValueError(f"positions must lie inside the container {container}")
-            container = (tuple(clo), tuple(chi))
-        if domain is not None:
-            lo, hi = np.array(domain[0]), np.array(domain[1])
-            if ((x < lo) | (x > hi)).any():
-                raise ValueError(f"positions must lie inside the domain {domain}")
+        domain, container = check_boxes(x, domain, container, boundary)
 
         h = support_factor * spacing
         volume = lattice_volume(spacing, h, kernel)
@@ -652,29 +224,10 @@ class SPHLiquid(Simulation):
             gnorm = float(np.linalg.norm(gravity))
             speed_of_sound = 10.0 * max(math.sqrt(2.0 * gnorm * height), 1.0)
 
-        if boundary is not None and boundary.n_points:
-            bx = boundary.points
-            bv = boundary.volumes
-            blo = bx.min(axis=0)
-            # DFSPH finds its neighbours afresh every step (its steps move particles farther
-            # than any affordable skin); WCSPH reuses Verlet lists of radius h (1 + 2 skin).
-            reach = h if solver == "dfsph" else h * (1.0 + 2.0 * skin)
-            cell = reach * _CELL_PAD / _REACH
-            bdims = (np.floor((bx.max(axis=0) - blo) / cell) + 1).astype(np.int64)
-            if float(np.prod(bdims.astype(np.float64))) > 2e8:
-                raise ValueError("boundary spans more than 2e8 grid cells; increase spacing")
-            keys = _grid_keys(bx, blo, 1.0 / cell, bdims)
-            bstart, border = _counting_sort(keys, int(np.prod(bdims)), numba.get_num_threads())
-            bx = np.ascontiguousarray(bx[border])
-            bv = np.ascontiguousarray(bv[border])
-        else:
-            bx = np.zeros((0, 3))
-            bv = np.zeros(0)
-            blo = np.zeros(3)
-            bdims = np.ones(3, dtype=np.int64)
-            bstart = np.zeros(2, dtype=np.int64)
-        bx.setflags(write=False)
-        bv.setflags(write=False)
+        # DFSPH finds its neighbours afresh every step (its steps move particles farther than
+        # any affordable skin); WCSPH reuses Verlet lists of radius h (1 + 2 skin).
+        reach = h if solver == "dfsph" else h * (1.0 + 2.0 * skin)
+        bx, bv, blo, bdims, bstart = sort_boundary(boundary, reach * _CELL_PAD / _REACH)
 
         self.model = SPHModel(
             spacing=spacing, support=h, kernel=kernel, rest_density=rest_density, mass=mass,
@@ -839,7 +392,8 @@ class SPHLiquid(Simulation):
         if anchor is None or anchor.shape != s.positions.shape:
             rebuild = True
         else:
-            rebuild = skin <= 0.0 or _max_displacement2(s.positions, anchor) > (0.5 * skin) ** 2
+            moved2 = particles.max_displacement2(s.positions, anchor)
+            rebuild = skin <= 0.0 or moved2 > (0.5 * skin) ** 2
         if rebuild:
             self._build_lists(m.support + skin, permute=True)
             s.extra["anchor"] = s.positions.copy()
@@ -859,13 +413,13 @@ class SPHLiquid(Simulation):
             raise SimulationUnstableError(s.time, "particle spread",
                                           "particles spread over more than 2e8 grid cells")
         dims = dims_f.astype(np.int64)
-        keys = _grid_keys(x, lo, 1.0 / cell, dims)
-        start, order = _counting_sort(keys, int(np.prod(dims)), numba.get_num_threads())
+        keys = cell_keys(x, lo, 1.0 / cell, dims)
+        start, order = counting_sort(keys, int(np.prod(dims)), numba.get_num_threads())
         if permute:
             xo = np.empty_like(x)
             vo = np.empty_like(s.velocities)
             io = np.empty_like(s.extra["id"])
-            _permute(x, s.velocities, s.extra["id"], order, xo, vo, io)
+            particles.permute(x, s.velocities, s.extra["id"], order, xo, vo, io)
             s.positions = xo
             s.velocities = vo
             s.extra["id"] = io
@@ -882,13 +436,13 @@ class SPHLiquid(Simulation):
             s.positions, True, False, sx, start, sorted_ids, lo, cell, dims, _REACH, r2,
             self._capacity)
         self._capacity = best + 4
-        _sort_rows(self._tab, self._cnt)
+        particles.sort_rows(self._tab, self._cnt)
         bcell = self._bcell
         self._btab, self._bcnt, best = grid_query_padded(
             s.positions, False, False, m.boundary_points, self._bstart, self._border,
             self._borigin, bcell, self._bdims, _REACH, r2, self._bcapacity)
         self._bcapacity = max(best, 1) + 4
-        _sort_rows(self._btab, self._bcnt)
+        particles.sort_rows(self._btab, self._bcnt)
 
     def _neighbourhood(self):
         """DFSPH: sort the particles by grid cell (cells of ``h / 2``; a stable counting sort,
@@ -906,13 +460,13 @@ class SPHLiquid(Simulation):
             raise SimulationUnstableError(s.time, "particle spread",
                                           "particles spread over more than 2e8 grid cells")
         dims = dims_f.astype(np.int64)
-        keys = _grid_keys(x, lo, 1.0 / cell, dims)
-        start, order = _counting_sort(keys, int(np.prod(dims)), numba.get_num_threads())
-        if not _is_identity(order):
+        keys = cell_keys(x, lo, 1.0 / cell, dims)
+        start, order = counting_sort(keys, int(np.prod(dims)), numba.get_num_threads())
+        if not particles.is_identity(order):
             xo = np.empty_like(x)
             vo = np.empty_like(s.velocities)
             io = np.empty_like(s.extra["id"])
-            _permute(x, s.velocities, s.extra["id"], order, xo, vo, io)
+            particles.permute(x, s.velocities, s.extra["id"], order, xo, vo, io)
             s.positions = xo
             s.velocities = vo
             s.extra["id"] = io
@@ -930,7 +484,7 @@ class SPHLiquid(Simulation):
         m = self.model
         x = self.state.positions
         if m.solver != "dfsph":  # DFSPH: densities come from _neighbourhood
-            _density(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt,
+            forces.density(x, self._tab, self._cnt, m.boundary_points, self._btab, self._bcnt,
                      self._bpsi, m.mass, m.support, self._kind, self._rho)
         if m.solver == "dfsph":
             # Pressure of the last step's two solves: p = (pi + pi_v) rho^2 / rho0, with
@@ -941,7 +495,7 @@ class SPHLiquid(Simulation):
                           * self._rho ** 2 / m.rest_density)
             err = max(float((self._rho / m.rest_density - 1.0).max()), 0.0)
         else:
-            err = _tait(self._rho, m.rest_density, self._stiffness, m.gamma, self._p)
+            err = forces.tait_pressure(self._rho, m.rest_density, self._stiffness, m.gamma, self._p)
         self.density_error = float(err)
         self.mean_density_error = float(
             np.maximum(self._rho / m.rest_density - 1.0, 0.0).mean())
@@ -970,34 +524,38 @@ class SPHLiquid(Simulation):
         x = s.positions
         v = s.velocities
         if m.surface_tension > 0.0:
-            _normals(x, self._rho, self._tab, self._cnt, m.mass, m.support, self._kind, self._nrm)
+            forces.normals(x, self._rho, self._tab, self._cnt, m.mass, m.support, self._kind,
+                           self._nrm)
         g = self._gravity
-        _boundary_pressure(x, self._rho, self._p, m.boundary_points, self._btab, self._bcnt,
-                           m.support, self._kind, g, m.rest_density, self._stiffness, m.gamma,
-                           m.boundary_pressure == "mirror", self._bpr)
-        amax = _accelerations(x, v, self._rho, self._p, self._tab, self._cnt, m.boundary_points,
-                              self._btab, self._bcnt, self._bpsi, self._bpr, m.mass, m.support, self._kind,
-                              m.viscosity, m.boundary_viscosity, m.speed_of_sound,
-                              m.rest_density, m.surface_tension, self._nrm, g, self._a)
+        forces.boundary_pressures(x, self._rho, self._p, m.boundary_points, self._btab,
+                                  self._bcnt, m.support, self._kind, g, m.rest_density,
+                                  self._stiffness, m.gamma, m.boundary_pressure == "mirror",
+                                  self._bpr)
+        amax = forces.accelerations(x, v, self._rho, self._p, self._tab, self._cnt,
+                                    m.boundary_points, self._btab, self._bcnt, self._bpsi,
+                                    self._bpr, m.mass, m.support, self._kind, m.viscosity,
+                                    m.boundary_viscosity, m.speed_of_sound, m.rest_density,
+                                    m.surface_tension, self._nrm, g, self._a)
         if self._field is not None:
             extra = np.asarray(self._field(x, v, s.time), dtype=np.float64)
             if extra.shape != x.shape:
                 raise ValueError(f"external field returned shape {extra.shape}, expected {x.shape}")
             self._a += extra
             amax = float(np.sqrt((self._a ** 2).sum(axis=1)).max())
-        vmax = _integrate(x, v, self._a, dt)
+        vmax = particles.integrate(x, v, self._a, dt)
         if m.xsph > 0.0:
             out = np.empty_like(v)
-            _xsph(v, self._rho, x, self._tab, self._cnt, m.mass, m.support, self._kind, m.xsph, out)
+            forces.xsph(v, self._rho, x, self._tab, self._cnt, m.mass, m.support, self._kind,
+                        m.xsph, out)
             s.velocities = out
             vmax = float(np.sqrt((out ** 2).sum(axis=1)).max())
         if m.container is not None:
-            self.contained += int(_contain(x, s.velocities, self._clo, self._chi))
+            self.contained += int(particles.contain(x, s.velocities, self._clo, self._chi))
         s.extra["kinematics"] = np.array([vmax, amax])
         if not math.isfinite(vmax):
             raise SimulationUnstableError(s.time + dt, "non-finite velocities", self.instability_hint)
         if m.domain is not None:
-            bad = _outside(x, self._dlo, self._dhi)
+            bad = particles.outside(x, self._dlo, self._dhi)
             if bad >= 0:
                 raise SimulationUnstableError(
                     s.time + dt, f"particle {int(s.extra['id'][bad])} left the domain "
@@ -1026,8 +584,8 @@ class SPHLiquid(Simulation):
         solver.divergence_solve(v, dt, ex["kappa_v"])
         g = self._gravity
         if m.surface_tension > 0.0:
-            _normals(x, self._rho, tab, cnt, m.mass, m.support, self._kind, self._nrm)
-            amax = _accelerations(x, v, self._rho, self._zero_p, tab, cnt,
+            forces.normals(x, self._rho, tab, cnt, m.mass, m.support, self._kind, self._nrm)
+            amax = forces.accelerations(x, v, self._rho, self._zero_p, tab, cnt,
                                   m.boundary_points, *self._no_boundary, self._bpsi,
                                   self._bmirror, m.mass, m.support, self._kind, 0.0, 0.0,
                                   m.speed_of_sound, m.rest_density, m.surface_tension,
@@ -1058,11 +616,11 @@ class SPHLiquid(Simulation):
         vmax = solver.drift(x, v, dt)
         if m.xsph > 0.0:
             out = np.empty_like(v)
-            _xsph(v, self._rho, x, tab, cnt, m.mass, m.support, self._kind, m.xsph, out)
+            forces.xsph(v, self._rho, x, tab, cnt, m.mass, m.support, self._kind, m.xsph, out)
             s.velocities = out
             vmax = float(np.sqrt((out ** 2).sum(axis=1)).max())
         if m.container is not None:
-            self.contained += int(_contain(x, s.velocities, self._clo, self._chi))
+            self.contained += int(particles.contain(x, s.velocities, self._clo, self._chi))
         old = ex["kinematics"]
         cap = self._update_step_cap(float(old[3]) if old.shape[0] > 3 else self.max_dt, dt,
                                     solver.density_iterations)
@@ -1070,7 +628,7 @@ class SPHLiquid(Simulation):
         if not math.isfinite(vmax):
             raise SimulationUnstableError(s.time + dt, "non-finite velocities", self.instability_hint)
         if m.domain is not None:
-            bad = _outside(x, self._dlo, self._dhi)
+            bad = particles.outside(x, self._dlo, self._dhi)
             if bad >= 0:
                 raise SimulationUnstableError(
                     s.time + dt, f"particle {int(s.extra['id'][bad])} left the domain "

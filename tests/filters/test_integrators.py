@@ -123,23 +123,46 @@ def test_momentum_conserved_without_gravity_and_pins(scheme, mode):
     assert np.abs(p - p0).max() < 1e-10 * scale
 
 
-def test_newton_line_search_never_gains_energy_on_stiff_chain():
-    # a stiff hanging chain released sideways: large steps, nonlinear springs
+@pytest.mark.parametrize("with_colliders", [False, True])
+def test_newton_line_search_never_gains_energy_on_stiff_chain(with_colliders):
+    # a stiff hanging chain released sideways: large steps, nonlinear springs; with colliders,
+    # it swings into a floor below its pin and a ball, with friction, and the energy account
+    # includes the contacts' barrier energy
+    from filters.elastic.contact import Colliders
+    from filters.elastic.contact_model import ContactModel
+    from filters.geometry import Plane, Sphere
+
     n = 12
     x = np.stack([np.linspace(0, 1.0, n), np.zeros(n), np.zeros(n)], axis=1)
     pairs = np.stack([np.arange(n - 1), np.arange(1, n)], 1)
     pinned = np.zeros(n, bool)
     pinned[0] = True
     sysm = SpringSystem(pairs, 1.0 / (n - 1), 1e4, np.full(n, 0.01), pinned=pinned)
+    contact = None
+    if with_colliders:
+        colliders = (Colliders(friction=0.5, thickness=0.01)
+                     .add(Plane((0, 0, -0.6), (0, 0, 1))).add(Sphere((0.3, 0.0, -0.45), 0.1)))
+        contact = ContactModel(colliders, sysm.masses, 1.0 / 30.0, pinned=pinned,
+                               elastic_diagonal=sysm.elastic_diagonal())
     state = State(x)
-    e = sysm.energy(state.positions, state.velocities)
+
+    def energy():
+        e = sysm.energy(state.positions, state.velocities)
+        return e if contact is None else e + contact.energy(state.positions)
+
+    e = energy()
+    touched = 0
     for _ in range(60):
         info = backward_euler(sysm, state, 1.0 / 30.0, solver="direct", newton_tol=1e-6,
-                              max_newton=50)
-        e_new = sysm.energy(state.positions, state.velocities)
+                              max_newton=50, contact=contact)
+        e_new = energy()
         assert e_new <= e + 1e-9 * abs(e)
         e = e_new
+        if contact is not None:
+            touched = max(touched, contact.touching)
+            assert contact.clearance(state.positions).min() > 0.0
     assert info.newton_iterations >= 1
+    assert touched >= (2 if with_colliders else 0)
 
 
 def test_implicit_advection_is_backward_euler_for_linear_fields():

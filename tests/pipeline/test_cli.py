@@ -157,3 +157,88 @@ def test_surface_of_a_scene_run_rebuilds_the_scene_surface(tmp_path, capsys):
     _, iso = read_series(tmp_path / "iso" / "surface.pvd")
     assert iso[0].n_points != scene[0].n_points or not np.array_equal(iso[0].points,
                                                                       scene[0].points)
+
+
+def test_version_prints_the_package_version(capsys):
+    from importlib.metadata import version
+
+    code, out, err = _run_cli(capsys, "--version")
+    assert code == 0 and out == f"blobflow {version('blobflow')}\n" and not err
+
+
+def test_list_verbose_gives_every_description_whole(capsys):
+    # one line per parameter, each description complete: a sentence with its final period
+    # (the docstrings' continuation lines included), no reST literal markup
+    from pipeline.scene import available_scenes, load_scene
+
+    code, out, _ = _run_cli(capsys, "list", "--verbose")
+    assert code == 0
+    lines = [l for l in out.splitlines() if l.startswith("    ") and " = " in l]
+    expected = sum(len(load_scene(n).parameters) for n in available_scenes())
+    assert len(lines) == expected
+    for line in lines:
+        assert line.endswith("."), line
+        assert "``" not in line and "  " not in line.split(") ", 1)[1], line
+    assert any("Halving it multiplies the particle count by 8" in l for l in lines)
+
+
+@pytest.mark.parametrize("command", ["run", "surface", "render", "export", "list", "info",
+                                     "paraview"])
+def test_every_help_shows_defaults(capsys, command):
+    code, out, _ = _run_cli(capsys, command, "--help")
+    assert code == 0 and out.startswith("usage: blobflow " + command)
+    out = " ".join(out.split())  # argparse wraps lines
+    if command == "run":
+        assert "dam_break: 1.5 s at 30 fps" in out and "hair: 3 s at 30 fps" in out
+    if command == "surface":
+        assert "one of blobby, metaball, sph, zhu_bridson (default: sph)" in out
+        assert "(default: 30)" in out and "feature_smoothing=25" in out
+    if command == "render":
+        assert "(default: 640x480)" in out
+
+
+def test_resumed_run_removes_the_renders_of_the_shorter_run(tmp_path, capsys):
+    out_dir = tmp_path / "b"
+    argv = ["run", "bouncing", "--out", str(out_dir), "--set", "count=2", "-q", "--no-render"]
+    assert _run_cli(capsys, *argv, "--frames", "3")[0] == 0
+    for name in ("turntable.gif", "movie.mp4"):
+        (out_dir / name).write_bytes(b"previous run")
+    mine = out_dir / "notes.txt"
+    mine.write_text("not blobflow's")
+    assert _run_cli(capsys, *argv, "--frames", "5", "--resume")[0] == 0
+    assert not (out_dir / "turntable.gif").exists() and not (out_dir / "movie.mp4").exists()
+    assert mine.read_text() == "not blobflow's"
+    for name in ("turntable.gif", "movie.mp4"):
+        (out_dir / name).write_bytes(b"previous run")
+    assert _run_cli(capsys, *argv, "--frames", "2")[0] == 0  # a fresh run over it
+    assert not (out_dir / "turntable.gif").exists() and not (out_dir / "movie.mp4").exists()
+
+
+def test_one_line_notice_when_numba_compiles(capsys):
+    # the notice listens to Numba's compile events, which fire only on a cache miss
+    from numba import njit
+
+    from pipeline.cli_tools import announce_compilation
+
+    announce_compilation()
+
+    @njit(cache=False)
+    def twice(x):
+        return 2 * x
+
+    @njit(cache=False)
+    def thrice(x):
+        return 3 * x
+
+    assert twice(2) == 4 and thrice(2) == 6
+    err = capsys.readouterr().err
+    assert err.count("blobflow: compiling Numba kernels") == 1 and err.count("\n") == 1
+
+
+def test_paraview_command_names_the_plugin(capsys):
+    code, out, _ = _run_cli(capsys, "paraview")
+    plugin = Path(out.split("ParaView plugin: ", 1)[1].split("\n", 1)[0])
+    assert code == 0 and plugin.name == "paraview_plugin.py" and plugin.is_file()
+    assert f"--script={plugin.with_name('paraview_startup.py')}" in out
+    code, _, err = _run_cli(capsys, "paraview", "file.pvd")
+    assert code == 2 and "need --launch" in err

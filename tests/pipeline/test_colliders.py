@@ -43,8 +43,8 @@ def _expected(name, p):
     if name == "drop":
         return {"tank": ("container", "box_container",
                          [0, 0, 0, p["tank_length"], p["tank_width"], p["tank_height"]])}
-    if name == "hair":  # the collider sits just inside the roots, at 0.98 of the head radius
-        return {"head": ("solid", "sphere", [0, 0, 1.5, 0.98 * p["head_radius"]])}
+    if name == "hair":  # the head the roots sit on
+        return {"head": ("solid", "sphere", [0, 0, 1.5, p["head_radius"]])}
     if name == "jello_drop":
         return {"floor": floor}
     if name == "noise_smoke":

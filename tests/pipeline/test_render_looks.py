@@ -217,7 +217,9 @@ def test_cli_render_time_mistakes(tmp_path, capsys, argv, message):
     assert not (tmp_path / "x.gif").exists()
 
 
-def test_gallery_runs_a_scene_with_its_defaults_and_reuses_the_run(tmp_path, capsys):
+def test_gallery_runs_a_scene_with_its_defaults_and_reuses_the_run(tmp_path, capsys,
+                                                                    monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no outputs/bouncing of the working copy is reused
     out, runs = tmp_path / "docs", tmp_path / "runs"
     assert main(["gallery", "bouncing", "--out", str(out), "--runs", str(runs), "-q"]) == 0
     image = imageio.imread(out / "bouncing.png")
@@ -230,6 +232,14 @@ def test_gallery_runs_a_scene_with_its_defaults_and_reuses_the_run(tmp_path, cap
     assert main(["gallery", "bouncing", "--out", str(out), "--runs", str(runs), "-q"]) == 0
     assert "reusing" in capsys.readouterr().out
     assert (runs / "bouncing" / "particles.pvd").stat().st_mtime_ns == before
+    np.testing.assert_array_equal(imageio.imread(out / "bouncing.png"), image)
+    # a run of the defaults where `blobflow run bouncing` writes is reused as well
+    (tmp_path / "outputs").mkdir()
+    (runs / "bouncing").rename(tmp_path / "outputs" / "bouncing")
+    capsys.readouterr()
+    assert main(["gallery", "bouncing", "--out", str(out), "--runs", str(runs), "-q"]) == 0
+    assert f"reusing the run in {Path('outputs') / 'bouncing'}" in capsys.readouterr().out
+    assert not (runs / "bouncing").exists()
     np.testing.assert_array_equal(imageio.imread(out / "bouncing.png"), image)
     assert main(["gallery", "nope", "--out", str(out), "--runs", str(runs)]) == 2
 
