@@ -452,7 +452,8 @@ def _cmd_run(args) -> int:
         from .render import RenderUnavailableError, render_run
 
         try:
-            paths.update(render_run(paths.values(), out, progress=not args.quiet))
+            paths.update(render_run(paths.values(), out, time=scene.still,
+                                    progress=not args.quiet))
         except RenderUnavailableError as exc:
             # the series are the run's result; pictures need a system library
             print(f"blobflow: rendering skipped: {exc}", file=sys.stderr)

@@ -55,8 +55,8 @@ def surface_help(parser) -> None:
 def add_gallery_parser(sub) -> None:
     p = sub.add_parser("gallery", help="run every scene with its defaults and draw one still of "
                        "each (the README's pictures)",
-                       description="Draw one still per scene (its most interesting frame, "
-                       "640x480, with its colliders) from a run of the scene's defaults: a "
+                       description="Draw one still per scene (at the scene's still time, else "
+                       "its most interesting frame; 640x480, with its colliders) from a run of the scene's defaults: a "
                        "complete run of exactly the defaults in RUNS/SCENE or in outputs/SCENE "
                        "(where `blobflow run SCENE` writes) is reused, else the scene is run "
                        "into RUNS/SCENE with --no-render.")
@@ -96,7 +96,8 @@ def gallery_command(args, *, run, check_writable) -> int:
                 print(f"blobflow: gallery stopped: the run of {name!r} failed", file=sys.stderr)
                 return code
         try:
-            path, index, reason = gallery_still(directory, out / f"{name}.png")
+            path, index, reason = gallery_still(directory, out / f"{name}.png",
+                                                time=scene.still)
         except RenderUnavailableError as exc:
             raise ValueError(str(exc)) from None
         print(f"{name}: wrote {path} (frame {index}, {reason})")

@@ -236,11 +236,12 @@ def render_still(series, out, *, time_index: int | None = None, time: float | No
 
 
 def render_run(series_paths, directory, *, turntable_frames: int = 24, size=(640, 480),
-               progress: bool = True) -> dict[str, Path]:
+               time: float | None = None, progress: bool = True) -> dict[str, Path]:
     """The renders ``blobflow run`` makes of a finished run.
 
-    A turntable GIF of the most interesting frame (``turntable.gif``, ``turntable_frames``
-    distinct views) and a time-lapse MP4 of all frames with a slow quarter orbit
+    A turntable GIF of the frame nearest ``time`` (s; a scene's
+    :attr:`~pipeline.scene.Scene.still`) when the run reaches it, else of the most interesting
+    frame (``turntable.gif``, ``turntable_frames`` distinct views) and a time-lapse MP4 of all frames with a slow quarter orbit
     (``movie.mp4``), both ``size`` and in ``directory``, drawn by one renderer framed on the
     whole run (each frame is read once to frame the camera and pick the turntable's time).
 
@@ -255,6 +256,8 @@ def render_run(series_paths, directory, *, turntable_frames: int = 24, size=(640
     with Renderer(list(series_paths), size=size) as renderer:
         index, _ = renderer.interesting()
         n = len(renderer.times)
+        if time is not None and n and time <= renderer.times[-1] + 1e-9:
+            index = int(np.argmin(np.abs(renderer.times - time)))
         views = (renderer.render(index, 360.0 * k / turntable_frames)
                  for k in range(turntable_frames))
         spin = write_movie(views, directory / "turntable.gif", fps=24.0, count=turntable_frames,

@@ -96,5 +96,6 @@ def build(*, strands: int = 200, segments: int = 16, length: float = 0.3,
     return flow
 
 
+# its still: the hair at rest, draped over the head
 SCENE = Scene("hair", build, "hair strands rooted on a head, draping and coming to rest",
-              fps=SCENE_FPS, duration=SCENE_DURATION)
+              fps=SCENE_FPS, duration=SCENE_DURATION, still=SCENE_DURATION)

@@ -3,6 +3,7 @@ robust framing, the most interesting frame, and the gallery."""
 
 import json
 import math
+import os
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -13,9 +14,10 @@ import pyvista as pv
 from filters.geometry import Box, Plane
 from pipeline.cli import main
 from pipeline.colliders import COLLIDERS_FILE, Collider, write_colliders
+from pipeline.gallery import GALLERY_SIZE, code_mtime, gallery_still, run_is_current, run_series
 from pipeline.render import frame_at_time, interesting_frame, turntable
 from pipeline.renderer import Renderer
-from pipeline.scene import available_scenes, load_scene
+from pipeline.scene import Scene, available_scenes, load_scene
 from pipeline.series import SeriesWriter
 
 pytestmark = pytest.mark.render
@@ -241,7 +243,25 @@ def test_gallery_runs_a_scene_with_its_defaults_and_reuses_the_run(tmp_path, cap
     assert f"reusing the run in {Path('outputs') / 'bouncing'}" in capsys.readouterr().out
     assert not (runs / "bouncing").exists()
     np.testing.assert_array_equal(imageio.imread(out / "bouncing.png"), image)
+    # a scene's still time chooses the frame instead of the most interesting one
+    reused = tmp_path / "outputs" / "bouncing"
+    path, index, reason = gallery_still(reused, tmp_path / "still.png", time=0.2)
+    assert index == 6 and "t = 0.2 s" in reason  # 30 frames per second
+    with Renderer(run_series(reused), size=GALLERY_SIZE, frames=[6]) as renderer:
+        np.testing.assert_array_equal(imageio.imread(path), renderer.render(6, 0.0))
+    # a run older than the code that computes it is stale: run again
+    scene = load_scene("bouncing")
+    assert run_is_current(reused, scene)
+    os.utime(reused / "particles.pvd", (code_mtime(scene) - 10.0,) * 2)
+    assert not run_is_current(reused, scene)
     assert main(["gallery", "nope", "--out", str(out), "--runs", str(runs)]) == 2
+
+
+def test_scene_still_time_must_lie_within_its_duration():
+    build = load_scene("bouncing").build_function
+    assert Scene("b", build, "d", duration=2.0, still=1.5).still == 1.5
+    with pytest.raises(ValueError, match="still must be a time in"):
+        Scene("b", build, "d", duration=2.0, still=2.5)
 
 
 def test_readme_shows_the_gallery_image_of_every_scene():
