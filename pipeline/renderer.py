@@ -416,6 +416,12 @@ class Renderer:
                                              kwargs.get("color", looks.POINTS), lut, _COLOR)
             self._scene.AddActor(layer.actor)
 
+    @property
+    def key_light_position(self) -> tuple[float, float, float]:
+        """Position (m) of the shadow-casting key light for the last :meth:`render` (it follows
+        the camera's azimuth)."""
+        return tuple(float(v) for v in self._key.position)
+
     def interesting(self) -> tuple[int, str]:
         """The most interesting of the frames the renderer was framed on, and why
         (:func:`pipeline.framing.interesting_index`: largest liquid surface area, else largest

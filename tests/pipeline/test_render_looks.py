@@ -65,7 +65,7 @@ def test_floor_under_a_resting_body_is_in_its_shadow(resting_ball):
         with Renderer(resting_ball, size=SIZE, text=False, shadows=shadows,
                       bounds=view) as renderer:
             images[shadows] = renderer.render(0, 0.0)
-            key = np.array(renderer._key.position)
+            key = np.array(renderer.key_light_position)
             # floor points just outside the ball's footprint (radius 0.1 m) on the side away
             # from the key light, under the ball's shadow, and far from it towards the light
             away = math.atan2(-key[1], -key[0])
