@@ -1,10 +1,10 @@
 """Flat liquid surfaces: anisotropic kernels (Yu & Turk 2013) vs. isotropic kernels and splashsurf.
 
-The flatness / sharpness / cost benchmark of issue 8, one run, side by side on identical
-particles (spacing s = 0.02 m, particle radius 0.01 m, cell 0.005 m, SPH kernel of support
-4 r, iso 0.6 -- the settings of ``bench_surface.py``; the anisotropic field uses its calibrated
-iso 0.51, see ``filters.surface.ellipsoids.ANISOTROPIC_ISO``). ``bench_surface.py --flatness``
-calls :func:`run_flatness`; this file also runs alone.
+The flatness / sharpness / cost benchmark, one run, side by side on identical particles
+(spacing s = 0.02 m, particle radius 0.01 m, cell 0.005 m, SPH kernel of support 4 r, iso 0.6 --
+the settings of ``bench_surface.py``; the anisotropic field raises the amplitudes of stretched
+kernels instead of lowering its iso, see ``filters.surface.volumes.stretched_gain``).
+``bench_surface.py --flatness`` calls :func:`run_flatness`; this file also runs alone.
 
 Cases:
 
@@ -37,8 +37,7 @@ smoothing, :func:`filters.surface.smoothing.smooth_surface`, the ``MarchingCubes
 ``splashsurf_raw`` (``pysplashsurf.reconstruct_surface``, smoothing length 2 r, cube 0.5 r, iso
 0.6, float32) and ``splashsurf_smoothed`` (``pysplashsurf.reconstruction_pipeline`` with its
 weighted Laplacian mesh smoothing, 25 iterations, Löschner et al. 2023). Per pool also
-``scene_pipeline``: the surface ``dam_break`` and ``drop`` write (``MetaballSplat`` intersected
-with the tank's inner box, ``MarchingCubes(feature_smoothing=25)``, ``Smooth(30, 0.01)``),
+``scene_pipeline``: the surface ``dam_break`` and ``drop`` write (:func:`scene_surface`),
 isotropic and anisotropic. ``ball_volume``: the volume error of every method on jittered lattice
 balls of radius 2, 3, 4 and 6 spacings (what smoothing costs drops).
 
@@ -75,6 +74,7 @@ from filters.surface.splat import splat_sparse  # noqa: E402
 from filters.surface.ellipsoids import ANISOTROPIC_ISO  # noqa: E402
 from filters.surface.splat import splat_sparse_anisotropic  # noqa: E402
 from filters.surface.mesh import mesh_stats  # noqa: E402
+from filters.surface.volumes import STRETCHED_GAIN  # noqa: E402
 
 S = 0.02
 R = 0.01
@@ -279,23 +279,21 @@ def sph_pool(seconds=1.5, shape=(20, 20, 8)):
 
 
 def scene_surface(x, tank_lo, tank_hi, anisotropic):
-    """The surface the liquid scenes build (``scenes/liquid_surface.py`` defaults):
-    ``MetaballSplat`` intersected with the tank's inner box, ``MarchingCubes`` with 25 sweeps of
-    feature-weighted smoothing, ``Smooth(30, 0.01)``."""
+    """The surface the liquid scenes build (:func:`pipeline.surface_options.
+    liquid_surface_options`: ghosts across the tank's walls and the surface cut at them,
+    feature smoothing, ``Smooth(30, 0.01)``, the volume correction), without normals and
+    attributes."""
     import pyvista as pv
 
-    from filters.geometry import Box
+    from pipeline.algorithm import run_chain
     from pipeline.contour import polydata_to_mesh
     from pipeline.surface import surface_stages
+    from pipeline.surface_options import liquid_surface_options
 
-    stages = surface_stages(radius=R, smooth_iterations=30, pass_band=0.01, feature_smoothing=25,
-                            implicit=Box(tank_lo, tank_hi), operation="intersection",
-                            anisotropic=anisotropic, normals=False)
-    stages[0].SetInputDataObject(0, pv.PolyData(np.ascontiguousarray(x)))
-    for a, b in zip(stages[:-1], stages[1:]):
-        b.SetInputConnection(a.GetOutputPort())
-    stages[-1].Update()
-    return polydata_to_mesh(stages[-1].GetOutputDataObject(0))
+    options = liquid_surface_options(2 * R, tank_lo, tank_hi, anisotropic=anisotropic,
+                                     normals=False, attributes=())
+    return polydata_to_mesh(run_chain(surface_stages(**options),
+                                      pv.PolyData(np.ascontiguousarray(x))))
 
 
 def _pool(x, lo_xy, hi_xy, tank, report, keep=None):
@@ -329,7 +327,7 @@ def _best_alternating(fns, x, repeats):
 
 
 def _verdict(out):
-    """Targets of issue 8, from the results."""
+    """The targets of the flatness benchmark, from the results."""
     flat = {}
     for case in ("pool_lattice", "pool_sph", "pool_sph_40"):
         methods = out["flatness"].get(case, {}).get("methods")
@@ -373,6 +371,7 @@ def run_flatness(report=print, *, write: bool = True, include_sph: bool = True,
                        "load_average_start": list(os.getloadavg())},
            "parameters": {"spacing_m": S, "particle_radius_m": R, "cell_size_m": CELL,
                           "iso": ISO, "anisotropic_iso": ANISOTROPIC_ISO["sph"],
+                          "stretched_gain": STRETCHED_GAIN,
                           "kernel": "sph, support 4 r",
                           "anisotropy": dict(ANISO_DEFAULTS),
                           "smooth": "pipeline.surface.Smooth defaults (100, pass band 0.001)",

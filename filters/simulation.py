@@ -184,11 +184,15 @@ class OutputSpec:
     fixed_topology : bool
         Whether the connectivity is the same in every frame (cloth, jello, hair), which allows
         exports such as XDMF that share one mesh across time.
+    cell_arrays : tuple of (str, int)
+        Name and number of components of every cell-data array (e.g. the strain energy density
+        of finite elements), in a stable order; none by default.
     """
 
     point_arrays: tuple = (("velocity", 3), ("id", 1))
     topology: str = "vertices"
     fixed_topology: bool = True
+    cell_arrays: tuple = ()
 
     def __post_init__(self):
         if self.topology not in ("vertices", "lines", "polys", "cells"):
@@ -219,6 +223,8 @@ class Frame:
         vertices, where every point is its own vertex cell.
     cell_types : (C,) uint8 array, optional
         VTK cell type of every cell, for ``topology == "cells"``.
+    cell_data : dict of str to ndarray, optional
+        Arrays of C rows, one per cell, named as in the :class:`OutputSpec`'s ``cell_arrays``.
     field_data : dict of str to ndarray
         Arrays about the whole frame (an energy account), written as field data.
     """
@@ -228,6 +234,7 @@ class Frame:
     point_data: dict
     connectivity: tuple | None = None
     cell_types: np.ndarray | None = None
+    cell_data: dict | None = None
     field_data: dict = field(default_factory=dict)
 
 

@@ -452,7 +452,8 @@ def _cmd_run(args) -> int:
         from .render import RenderUnavailableError, render_run
 
         try:
-            paths.update(render_run(paths.values(), out, time=scene.still,
+            drawn = [paths[name] for name in flow.drawn_outputs()] or list(paths.values())
+            paths.update(render_run(drawn, out, time=scene.still,
                                     progress=not args.quiet))
         except RenderUnavailableError as exc:
             # the series are the run's result; pictures need a system library

@@ -22,13 +22,15 @@ __all__ = ["Flow", "Stage"]
 
 @dataclass
 class Stage:
-    """A named output of a :class:`Flow`: the last algorithm of a chain, and how to write it."""
+    """A named output of a :class:`Flow`: the last algorithm of a chain, how to write it, and
+    whether the renders of a run draw it."""
 
     name: str
     algorithm: vtkAlgorithm
     chain: list = field(default_factory=list)
     write: bool = True
     xdmf: bool = False
+    draw: bool = True
 
 
 def _check_name(name: str) -> str:
@@ -48,6 +50,11 @@ class Flow:
         Name of the source's output (and of its series), default ``"particles"``.
     write : bool
         Whether to write the source's output as a series.
+    xdmf : bool
+        Also export it as XDMF (fixed topology only).
+    draw : bool
+        Whether the renders of a run (``blobflow run``) draw it; a written output that is not
+        drawn is only on disk (e.g. the tetrahedra around an embedded surface).
 
     Examples
     --------
@@ -58,13 +65,13 @@ class Flow:
     """
 
     def __init__(self, source: SimulationSource, name: str = "particles", *, write: bool = True,
-                 xdmf: bool = False):
+                 xdmf: bool = False, draw: bool = True):
         if not isinstance(source, SimulationSource):
             raise TypeError(f"source must be a SimulationSource, got {type(source).__name__}")
         self.source = source
         self.stages: dict[str, Stage] = {}
         self.stages[_check_name(name)] = Stage(name, source, [source], check_bool("write", write),
-                                               check_bool("xdmf", xdmf))
+                                               check_bool("xdmf", xdmf), check_bool("draw", draw))
         self._primary = name
         self.colliders: list[Collider] = []
 
@@ -74,7 +81,7 @@ class Flow:
         return self.source.times
 
     def add(self, name: str, *algorithms: vtkAlgorithm, input: str | None = None,
-            write: bool = True, xdmf: bool = False) -> vtkAlgorithm:
+            write: bool = True, xdmf: bool = False, draw: bool = True) -> vtkAlgorithm:
         """Append a chain of VTK algorithms after the output ``input`` and name its result.
 
         Parameters
@@ -91,6 +98,8 @@ class Flow:
         xdmf : bool
             Also export the series as XDMF + HDF5 at the end (fixed topology only,
             :func:`pipeline.xdmf.export_xdmf`).
+        draw : bool
+            Whether the renders of a run draw this output.
 
         Returns
         -------
@@ -102,6 +111,7 @@ class Flow:
             raise ValueError(f"an output named {name!r} exists already; names: {sorted(self.stages)}")
         write = check_bool("write", write)
         xdmf = check_bool("xdmf", xdmf)
+        draw = check_bool("draw", draw)
         input = input or self._primary
         if input not in self.stages:
             raise ValueError(f"input must be one of {sorted(self.stages)}, got {input!r}")
@@ -112,7 +122,7 @@ class Flow:
                 raise TypeError(f"stages must be VTK algorithms, got {type(algorithm).__name__}")
         connect_chain(algorithms, upstream=self.stages[input].algorithm)
         chain = self.stages[input].chain + list(algorithms)
-        self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf)
+        self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf, draw)
         return algorithms[-1]
 
     def add_collider(self, name: str, shape, role: str = "solid", *, size: float = 2.0) -> Collider:
@@ -179,6 +189,10 @@ class Flow:
     def written_outputs(self) -> list[str]:
         """Names of the outputs that :meth:`run` writes as series."""
         return [s.name for s in self.stages.values() if s.write]
+
+    def drawn_outputs(self) -> list[str]:
+        """Names of the written outputs that the renders of a run draw."""
+        return [s.name for s in self.stages.values() if s.write and s.draw]
 
     def check_resume(self, directory) -> int:
         """Check, without changing anything, that the series in ``directory`` can be resumed.

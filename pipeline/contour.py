@@ -1,11 +1,14 @@
-"""Contouring implicit fields with VTK's flying edges, on arrays: dense boxes and brick sets.
+"""Contouring implicit fields on arrays, dense boxes and brick sets: VTK's flying edges, or
+marching tetrahedra (:mod:`filters.surface.tetra`).
 
 A :class:`filters.surface.grid.SparseGrid` is contoured brick by brick in *voxel index*
 coordinates, where the vertices two bricks share come out bitwise equal, and stitched by merging
 those exact duplicates (:func:`filters.surface.mesh.stitch`): one watertight mesh, no cracks,
 with memory bounded by the bricks that hold surface. Flying edges is Schroeder, Maynard & Geveci
 (2015), "Flying edges: a high-performance scalable isocontouring algorithm"
-(``vtkFlyingEdges3D``). The :class:`pipeline.surface.MarchingCubes` stage uses the same pieces.
+(``vtkFlyingEdges3D``); marching tetrahedra cut every cube into the six tetrahedra of the Kuhn
+split, the same in every cube, so its bricks stitch the same way. The
+:class:`pipeline.surface.MarchingCubes` stage uses the same pieces.
 """
 
 from __future__ import annotations
@@ -18,10 +21,12 @@ from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
 
 from filters.surface.grid import DenseField, SparseGrid
 from filters.surface.mesh import piece_flags, stitch
-from filters.validation import check_int
+from filters.surface.tetra import contour_array, contour_grid
+from filters.validation import check_choice, check_int
 
 __all__ = [
     "FIELD_NAME",
+    "CONTOUR_METHODS",
     "flying_edges",
     "image_of",
     "Pieces",
@@ -34,6 +39,9 @@ __all__ = [
 
 #: Name of the point array holding the implicit values in the images.
 FIELD_NAME = "implicit"
+
+#: Contouring methods: VTK's flying edges (marching cubes) or marching tetrahedra.
+CONTOUR_METHODS = ("flying_edges", "tetrahedra")
 
 
 def flying_edges():
@@ -106,12 +114,14 @@ class Pieces:
         return pts, tris
 
 
-def contour_dense(field: DenseField):
-    """Zero level set of a dense field with vtkFlyingEdges3D.
+def contour_dense(field: DenseField, method: str = "flying_edges"):
+    """Zero level set of a dense field with vtkFlyingEdges3D or marching tetrahedra.
 
     Parameters
     ----------
     field : DenseField
+    method : {"flying_edges", "tetrahedra"}
+        Contouring method (:data:`CONTOUR_METHODS`).
 
     Returns
     -------
@@ -120,6 +130,10 @@ def contour_dense(field: DenseField):
     triangles : (T, 3) int32
         Outward-oriented triangles.
     """
+    if check_choice("method", method, CONTOUR_METHODS) == "tetrahedra":
+        if min(field.values.shape) < 2:
+            return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
+        return contour_array(field.values, field.index_origin, field.cell_size)
     pieces = Pieces()
     if min(field.values.shape) >= 2:
         image, _keep = image_of(field.values, field.index_origin)
@@ -146,8 +160,8 @@ def brick_images(grid: SparseGrid, group: int, chunk: int = 16):
             yield part[b] * span, vals[b]
 
 
-def contour_sparse(grid: SparseGrid, group: int = 4):
-    """Zero level set of a sparse grid: flying edges per brick, stitched into one mesh.
+def contour_sparse(grid: SparseGrid, group: int = 4, method: str = "flying_edges"):
+    """Zero level set of a sparse grid: contoured per brick, stitched into one mesh.
 
     Bricks of ``group ** 3`` blocks overlap their neighbours by one voxel layer; each is
     contoured in voxel-index coordinates, where a vertex on a shared face is computed from the
@@ -159,6 +173,9 @@ def contour_sparse(grid: SparseGrid, group: int = 4):
     grid : SparseGrid
     group : int
         Blocks per brick edge.
+    method : {"flying_edges", "tetrahedra"}
+        Contouring method (:data:`CONTOUR_METHODS`); marching tetrahedra contour a chunk of
+        bricks in parallel.
 
     Returns
     -------
@@ -168,6 +185,8 @@ def contour_sparse(grid: SparseGrid, group: int = 4):
         Outward-oriented triangles.
     """
     group = check_int("group", group, 1, 64)
+    if check_choice("method", method, CONTOUR_METHODS) == "tetrahedra":
+        return contour_grid(grid, group)
     pieces = Pieces()
     if not grid.empty:
         fe = flying_edges()

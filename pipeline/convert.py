@@ -69,6 +69,14 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
     missing = names - set(frame.point_data)
     if missing:
         raise ValueError(f"frame is missing the point arrays {sorted(missing)} its OutputSpec lists")
+    cell_data = frame.cell_data or {}
+    for name, values in cell_data.items():
+        if np.issubdtype(np.asarray(values).dtype, np.floating) and not np.isfinite(values).all():
+            raise ValueError(f"frame at t = {frame.time} has non-finite values in {name!r}")
+    missing = {name for name, _ in spec.cell_arrays} - set(cell_data)
+    if missing:
+        raise ValueError(f"frame is missing the cell arrays {sorted(missing)} its OutputSpec "
+                         f"lists")
 
 
 def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
@@ -77,7 +85,8 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     Parameters
     ----------
     frame : Frame
-        Points (M, 3), point data (M rows each) and optional CSR connectivity.
+        Points (M, 3), point data (M rows each), optional CSR connectivity and cell data (one
+        row per cell).
     spec : OutputSpec
         How to read the frame: its topology and the names of its point arrays.
     dataset : {"polydata", "unstructured"}, optional
@@ -129,6 +138,11 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     order += [name for name in frame.point_data if name not in order]
     for name in order:
         output.GetPointData().AddArray(_to_vtk_array(name, frame.point_data[name]))
+    if frame.cell_data:
+        order = [name for name, _ in spec.cell_arrays]
+        order += [name for name in frame.cell_data if name not in order]
+        for name in order:
+            output.GetCellData().AddArray(_to_vtk_array(name, frame.cell_data[name]))
     for name, values in frame.field_data.items():
         output.GetFieldData().AddArray(_to_vtk_array(name, np.asarray(values)))
     set_time(output, frame.time)

@@ -55,7 +55,7 @@ _SDDP = vtkStreamingDemandDrivenPipeline
 KERNELS = ("sph", "blobby", "metaball", "zhu_bridson")
 SURFACE = {"radius": 0.01, "kernel": "sph", "anisotropic": True, "feature_smoothing": 25,
            "smooth_iterations": 30, "pass_band": 0.01, "normals": True,
-           "attributes": ("velocity",)}
+           "attributes": ("velocity",), "volume_correction": True}
 #: Environment variables that would make blobflow's Python load ParaView's modules or libraries.
 _FOREIGN = ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "LD_LIBRARY_PATH", "LD_PRELOAD",
             "VTK_DEFAULT_OPENGL_WINDOW")
@@ -269,6 +269,14 @@ class ParticleSurface(VTKPythonAlgorithmBase):
     @_documentation("Windowed-sinc pass band in (0, 2); lower smooths more.")
     def SetPassBand(self, value):
         self._set("pass_band", float(value))
+
+    @smproperty.intvector(name="VolumeCorrection", label="Volume Correction",
+                          default_values=int(SURFACE["volume_correction"]))
+    @smdomain.xml('<BooleanDomain name="bool"/>')
+    @_documentation("Offset every closed piece of the surface along its normals until it "
+                    "encloses its particles' volume, (2 radius)^3 each (a liquid's particles).")
+    def SetVolumeCorrection(self, value):
+        self._set("volume_correction", bool(int(value)))
 
     @smproperty.intvector(name="Normals", default_values=int(SURFACE["normals"]))
     @smdomain.xml('<BooleanDomain name="bool"/>')

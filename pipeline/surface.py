@@ -12,17 +12,24 @@ them). Stages that need the particles read them on their second input port
     inside) computed by :mod:`filters.surface.splat`, optionally combined with a shape of
     :mod:`filters.geometry` (:mod:`filters.surface.csg`).
 ``MarchingCubes``
-    vtkFlyingEdges3D at ``value`` (0 for our fields): one watertight vtkPolyData, bricks
-    contoured in voxel-index coordinates and stitched (:mod:`pipeline.contour`).
-``FeatureSmoothing`` (mesh, particles)
+    vtkFlyingEdges3D at ``value`` (0 for our fields), or marching tetrahedra
+    (``method="tetrahedra"``): one watertight vtkPolyData, bricks contoured in voxel-index
+    coordinates and stitched (:mod:`pipeline.contour`).
+``ClipBox`` (with a tank whose walls the particles are mirrored across)
+    The surface cut exactly at the tank's walls and closed with flat faces
+    (:mod:`pipeline.liquid`); the smoothing stages keep those faces on the walls.
+``FeatureSmoothing`` (mesh, particles; :mod:`pipeline.particle_stages`)
     Feature-weighted Laplacian smoothing (Löschner et al. 2023,
     :mod:`filters.surface.smoothing`): flat liquid smoothed fully, droplets and sheets kept.
-``InterpolateAttributes`` (mesh, particles)
+``InterpolateAttributes`` (mesh, particles; :mod:`pipeline.particle_stages`)
     Particle arrays (``velocity``, ...) carried to the vertices with the splatting kernel
     (Shepard weights, :mod:`filters.surface.attributes`).
 ``Smooth`` (:mod:`pipeline.mesh_stages`)
     vtkWindowedSincPolyDataFilter (Taubin, Zhang & Golub 1996), whose low-pass filter does not
-    shrink the surface the way Laplacian smoothing does.
+    shrink the surface the way Laplacian smoothing does (:mod:`pipeline.mesh_stages`).
+``VolumeCorrection`` (mesh, particles)
+    Every closed piece offset along its normals until it encloses its particles' volume
+    (:mod:`pipeline.liquid`, :mod:`filters.surface.correction`).
 ``Normals``
     vtkPolyDataNormals without splitting (the mesh stays watertight).
 
@@ -42,21 +49,25 @@ from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageDa
                                            vtkPartitionedDataSet,
                                            vtkPointSet, vtkPolyData)
 
-from filters.geometry import Shape
+from filters.geometry import Box, Shape
 from filters.kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from filters.surface.anisotropy import check_anisotropy
-from filters.surface.attributes import interpolate_attributes
 from filters.surface.csg import OPERATIONS, combine_dense, combine_sparse
 from filters.surface.ellipsoids import ANISOTROPIC_KERNELS
 from filters.surface.grid import DEFAULT_MAX_BYTES
-from filters.surface.smoothing import smooth_surface
 from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
                                    splat_sparse_anisotropic)
+from filters.surface.tetra import TetraPieces
+from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
-from .algorithm import Algorithm, ParticleStage, run_chain
-from .contour import Pieces, brick_images, flying_edges, image_of, mesh_to_polydata
+from .algorithm import Algorithm, run_chain
+from .contour import (CONTOUR_METHODS, Pieces, brick_images, flying_edges, image_of,
+                      mesh_to_polydata)
+from .liquid import ClipBox, VolumeCorrection
 from .mesh_stages import Normals, Smooth
+from .particle_stages import (FeatureSmoothing, InterpolateAttributes, check_optional_range,
+                              check_optional_str, particles_from, radii_from)
 from .surface_options import SURFACE_DEFAULTS
 
 __all__ = [
@@ -66,57 +77,12 @@ __all__ = [
     "InterpolateAttributes",
     "Smooth",
     "Normals",
+    "ClipBox",
+    "VolumeCorrection",
     "surface_stages",
     "surface_option_names",
     "reconstruct",
 ]
-
-
-# --------------------------------------------------------------------------------------------
-# Checks shared by the stages
-# --------------------------------------------------------------------------------------------
-
-
-def _check_optional_str(name, value):
-    if value is not None and not (isinstance(value, str) and value):
-        raise TypeError(f"{name} must be a point array name or None, got {value!r}")
-    return value
-
-
-def _check_names(name, values):
-    if isinstance(values, str):
-        raise TypeError(f"{name} must be a sequence of point array names, got the string "
-                        f"{values!r}")
-    try:
-        values = tuple(values)
-    except TypeError:
-        raise TypeError(f"{name} must be a sequence of point array names, got {values!r}") from None
-    for v in values:
-        if not (isinstance(v, str) and v):
-            raise TypeError(f"{name} must hold point array names, got {v!r}")
-    return values
-
-
-def _check_optional_range(name, value, low, high, low_inclusive=True):
-    return None if value is None else check_range(name, value, low, high,
-                                                  low_inclusive=low_inclusive)
-
-
-def _particles_from(inp):
-    n = inp.GetNumberOfPoints()
-    if n == 0:
-        return np.zeros((0, 3))
-    return numpy_support.vtk_to_numpy(inp.GetPoints().GetData()).astype(np.float64)
-
-
-def _radii_from(inp, positions, radius, radius_array):
-    """The particle radii (m): ``radius`` or, when there are particles, the ``radius_array``."""
-    if radius_array and positions.shape[0]:
-        arr = inp.GetPointData().GetArray(radius_array)
-        if arr is None:
-            raise ValueError(f"radius_array {radius_array!r} is not a point array of the input")
-        return numpy_support.vtk_to_numpy(arr).astype(np.float64).reshape(-1)
-    return radius
 
 
 # --------------------------------------------------------------------------------------------
@@ -149,6 +115,8 @@ class MetaballSplat(Algorithm):
         Memory budget (bytes) of the grid, >= 1.
     implicit : filters.geometry.Shape, optional
         A shape combined with the particle field by ``operation`` (:mod:`filters.surface.csg`).
+        A :class:`filters.geometry.Box` intersected with the field is the liquid's tank (see
+        ``mirror_walls``).
     operation : {"union", "intersection", "difference"}
         How ``implicit`` combines with the particles' field.
     anisotropic : bool
@@ -160,6 +128,14 @@ class MetaballSplat(Algorithm):
         Options of :func:`filters.surface.anisotropy.anisotropic_kernels` (``neighbor_radius_r``,
         ``stretch``, ``min_neighbors``, ``smoothing``, ``layer_band_r``, ``max_axis_r``,
         ``isotropy``).
+    mirror_walls : bool
+        With a :class:`filters.geometry.Box` ``implicit`` and ``operation="intersection"`` (the
+        liquid's tank): mirror the particles near its walls across them (ghost particles,
+        :mod:`filters.surface.walls`) and intersect the field with the box grown by one
+        spacing (:data:`filters.surface.walls.WALL_MARGIN_R` radii) instead: the surface goes
+        on through the walls, and :class:`pipeline.liquid.ClipBox` cuts it exactly at them
+        (:func:`surface_stages` adds it), so that it meets the walls, their edges and corners
+        without a gap.
     """
 
     def __init__(self, radius: float = SURFACE_DEFAULTS["radius"], cell_size: float | None = None,
@@ -168,7 +144,7 @@ class MetaballSplat(Algorithm):
                  block_size: int = 8, brick_blocks: int = 4,
                  max_bytes: int = DEFAULT_MAX_BYTES, implicit: Shape | None = None,
                  operation: str = "intersection", anisotropic: bool = False,
-                 anisotropy: dict | None = None):
+                 anisotropy: dict | None = None, mirror_walls: bool = False):
         self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
         self.cell_size = (self.radius / 2 if cell_size is None else
                           check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
@@ -177,10 +153,10 @@ class MetaballSplat(Algorithm):
         if self.anisotropic and kernel not in ANISOTROPIC_KERNELS:
             raise ValueError(f"kernel must be one of {', '.join(map(repr, ANISOTROPIC_KERNELS))} "
                              f"when anisotropic=True, got {kernel!r}")
-        self.support_r = _check_optional_range("support_r", support_r, 0.0, 1e3, False)
-        self.iso = _check_optional_range("iso", iso, 0.0, math.inf)
+        self.support_r = check_optional_range("support_r", support_r, 0.0, 1e3, False)
+        self.iso = check_optional_range("iso", iso, 0.0, math.inf)
         self.blobbiness = check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
-        self.radius_array = _check_optional_str("radius_array", radius_array)
+        self.radius_array = check_optional_str("radius_array", radius_array)
         self.sparse = check_bool("sparse", sparse)
         self.block_size = check_int("block_size", block_size, 4, 64)
         self.brick_blocks = check_int("brick_blocks", brick_blocks, 1, 64)
@@ -190,6 +166,7 @@ class MetaballSplat(Algorithm):
                             f"{type(implicit).__name__}")
         self.implicit = implicit
         self.operation = check_choice("operation", operation, OPERATIONS)
+        self.mirror_walls = check_bool("mirror_walls", mirror_walls)
         if anisotropy is not None and not isinstance(anisotropy, dict):
             raise TypeError(f"anisotropy must be a dict of options, got {anisotropy!r}")
         self.anisotropy = dict(anisotropy or {})
@@ -205,9 +182,30 @@ class MetaballSplat(Algorithm):
         options = dict(kernel=self.kernel, support_r=self.support_r, iso=self.iso,
                        block_size=self.block_size, blobbiness=self.blobbiness,
                        max_bytes=self.max_bytes)
+        if self.walls is not None:
+            # the liquid's tank: ghosts mirrored across its walls
+            options["walls"] = self.walls
         if self.anisotropic:
             options.update(self.anisotropy)
         return options
+
+    @property
+    def walls(self) -> Box | None:
+        """The tank whose walls the particles are mirrored across, or None."""
+        if self.mirror_walls and isinstance(self.implicit, Box) \
+                and self.operation == "intersection":
+            return self.implicit
+        return None
+
+    def _shape(self, radius):
+        """The shape combined with the field: the tank grown by WALL_MARGIN_R radii with
+        ghosts, else ``implicit``."""
+        if self.walls is None:
+            return self.implicit
+        margin = WALL_MARGIN_R * float(np.max(radius)) if np.size(radius) else 0.0
+        lo, hi = grow_walls((np.asarray(self.walls.lower, float),
+                             np.asarray(self.walls.upper, float)), margin)
+        return Box(tuple(lo), tuple(hi))
 
     def _splat(self, sparse: bool):
         """The splatting function for the chosen grid and kernel shape."""
@@ -217,12 +215,12 @@ class MetaballSplat(Algorithm):
 
     def RequestData(self, request, inInfo, outInfo):
         inp = vtkPointSet.GetData(inInfo[0], 0)
-        positions = _particles_from(inp)
-        radius = _radii_from(inp, positions, self.radius, self.radius_array)
+        positions = particles_from(inp)
+        radius = radii_from(inp, positions, self.radius, self.radius_array)
         if self.sparse:
             grid = self._splat(True)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
-                grid = combine_sparse(grid, self.implicit, self.operation,
+                grid = combine_sparse(grid, self._shape(radius), self.operation,
                                       max_bytes=self.max_bytes)
             out = vtkPartitionedDataSet.GetData(outInfo, 0)
             out.Initialize()
@@ -237,7 +235,7 @@ class MetaballSplat(Algorithm):
         else:
             field = self._splat(False)(positions, radius, self.cell_size, **self._options())
             if self.implicit is not None:
-                field = combine_dense(field, self.implicit, self.operation)
+                field = combine_dense(field, self._shape(radius), self.operation)
             out = vtkImageData.GetData(outInfo, 0)
             image, _keep = image_of(np.ascontiguousarray(field.values), field.index_origin,
                                     deep=True)
@@ -254,12 +252,17 @@ class MarchingCubes(Algorithm):
     ----------
     value : float
         Contour value, finite (0 for :class:`MetaballSplat` output: negative inside).
+    method : {"flying_edges", "tetrahedra"}
+        ``"flying_edges"``: VTK's vtkFlyingEdges3D (marching cubes); ``"tetrahedra"``: marching
+        tetrahedra on the Kuhn split of every cube (:mod:`filters.surface.tetra`), in Numba,
+        about twice the triangles.  Both stitch bricks into one mesh with shared vertices.
     """
 
-    def __init__(self, value: float = 0.0):
+    def __init__(self, value: float = 0.0, method: str = "flying_edges"):
         self.value = check_range("value", value)
         if not math.isfinite(self.value):
             raise ValueError(f"value must be finite, got {value!r}")
+        self.method = check_choice("method", method, CONTOUR_METHODS)
         Algorithm.__init__(self, nInputPorts=1, inputType="vtkDataObject", nOutputPorts=1,
                            outputType="vtkPolyData")
 
@@ -278,9 +281,13 @@ class MarchingCubes(Algorithm):
         else:
             raise TypeError(f"MarchingCubes needs vtkImageData or vtkPartitionedDataSet input, "
                             f"got {inp.GetClassName()}")
-        fe = flying_edges()
-        fe.SetValue(0, self.value)
-        pieces = Pieces()
+        tetra = self.method == "tetrahedra"
+        if tetra:
+            pieces = TetraPieces(self.value)
+        else:
+            fe = flying_edges()
+            fe.SetValue(0, self.value)
+            pieces = Pieces()
         cell = None
         for im in images:
             if im.GetNumberOfPoints() == 0 or min(im.GetDimensions()) < 2:
@@ -293,6 +300,14 @@ class MarchingCubes(Algorithm):
                 cell = float(spacing[0])
             # contour in index space so that bricks share bitwise equal vertices
             index_origin = np.round(np.array(im.GetOrigin()) / spacing)
+            if tetra:
+                nx, ny, nz = im.GetDimensions()
+                scalars = im.GetPointData().GetScalars()
+                if scalars is None:
+                    raise ValueError("MarchingCubes needs point scalars on its input images")
+                values = numpy_support.vtk_to_numpy(scalars).reshape(nz, ny, nx)
+                pieces.add(values, index_origin.astype(np.int64))
+                continue
             work = vtkImageData()
             work.ShallowCopy(im)
             work.SetOrigin(*index_origin)
@@ -302,126 +317,6 @@ class MarchingCubes(Algorithm):
             fe.Update()
             pieces.add(fe, index_origin, index_origin + np.array(im.GetDimensions()) - 1)
         return pieces.mesh(1.0 if cell is None else cell)
-
-
-class FeatureSmoothing(ParticleStage):
-    """Feature-weighted Laplacian smoothing of a liquid surface (Löschner et al. 2023).
-
-    Input port 0: the triangle mesh; port 1: the particles (see
-    :func:`filters.surface.smoothing.smooth_surface`): flat liquid is smoothed fully, sheets
-    and droplets of a few particles are left alone.
-
-    Parameters
-    ----------
-    iterations : int
-        Jacobi sweeps, in [0, 10000]; 0 passes the mesh through.
-    radius : float
-        Particle radius ``r`` (m), > 0, where the particles have no ``radius_array``; with
-        per-particle radii the largest sets the spacing the fullness is measured against.
-    radius_array : str, optional
-        Point array of the particles holding their radii (m).
-    reach_r : float
-        Neighbourhood radius over ``r``, in [1, 20].
-    """
-
-    def __init__(self, iterations: int = SURFACE_DEFAULTS["feature_smoothing"], *,
-                 radius: float = SURFACE_DEFAULTS["radius"], radius_array: str | None = None,
-                 reach_r: float = 8.0):
-        self.iterations = check_int("iterations", iterations, 0, 10000)
-        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-        self.radius_array = _check_optional_str("radius_array", radius_array)
-        self.reach_r = check_range("reach_r", reach_r, 1.0, 20.0)
-        ParticleStage.__init__(self)
-
-    def RequestData(self, request, inInfo, outInfo):
-        mesh = vtkPolyData.GetData(inInfo[0], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        out.ShallowCopy(mesh)
-        if not self.iterations or mesh.GetNumberOfPoints() == 0:
-            return 1
-        particles = vtkPointSet.GetData(inInfo[1], 0)
-        positions = _particles_from(particles)
-        radius = _radii_from(particles, positions, self.radius, self.radius_array)
-        radius = np.broadcast_to(np.asarray(radius, np.float64), (positions.shape[0],))
-        r = float(radius.max()) if radius.size else 1.0
-        pts = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
-        tris = numpy_support.vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()).reshape(-1, 3)
-        smoothed = smooth_surface(pts.astype(np.float64), tris,
-                                  np.ascontiguousarray(positions, np.float64), r,
-                                  iterations=self.iterations, reach_r=self.reach_r)
-        out.ShallowCopy(mesh_to_polydata(smoothed.astype(pts.dtype), tris))
-        return 1
-
-
-class InterpolateAttributes(ParticleStage):
-    """Particle point arrays carried to the vertices of a surface (Shepard weights of the
-    splatting kernel, :func:`filters.surface.attributes.interpolate_attributes`).
-
-    Input port 0: the mesh; port 1: the particles. The splatting options must be those of the
-    :class:`MetaballSplat` that made the surface (:func:`surface_stages` passes them).
-
-    Parameters
-    ----------
-    attributes : sequence of str
-        Point arrays of the particles to interpolate (missing ones are ignored).
-    radius, cell_size, kernel, support_r, blobbiness, radius_array
-        As in :class:`MetaballSplat`.
-    """
-
-    def __init__(self, attributes=SURFACE_DEFAULTS["attributes"], *,
-                 radius: float = SURFACE_DEFAULTS["radius"], cell_size: float | None = None,
-                 kernel: str = SURFACE_DEFAULTS["kernel"], support_r=None,
-                 blobbiness: float = 4.0, radius_array: str | None = None):
-        self.attributes = _check_names("attributes", attributes)
-        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
-        self.cell_size = (self.radius / 2 if cell_size is None else
-                          check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
-        self.kernel = check_choice("kernel", kernel, SPLAT_KERNELS)
-        self.support_r = _check_optional_range("support_r", support_r, 0.0, 1e3, False)
-        self.blobbiness = check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
-        self.radius_array = _check_optional_str("radius_array", radius_array)
-        ParticleStage.__init__(self)
-
-    def RequestData(self, request, inInfo, outInfo):
-        mesh = vtkPolyData.GetData(inInfo[0], 0)
-        particles = vtkPointSet.GetData(inInfo[1], 0)
-        out = vtkPolyData.GetData(outInfo, 0)
-        out.ShallowCopy(mesh)
-        positions = _particles_from(particles)
-        if not positions.shape[0]:
-            return 1
-        names, values = [], []
-        for name in self.attributes:
-            arr = particles.GetPointData().GetArray(name)
-            if arr is not None:
-                names.append(name)
-                values.append(numpy_support.vtk_to_numpy(arr).astype(np.float64))
-        if not names:
-            return 1
-        radius = _radii_from(particles, positions, self.radius, self.radius_array)
-        radius = np.broadcast_to(np.asarray(radius, np.float64), (positions.shape[0],)).copy()
-        n = mesh.GetNumberOfPoints()
-        pd = out.GetPointData()
-        if n == 0:
-            result = [np.zeros((0,) + v.shape[1:], np.float64) for v in values]
-        else:
-            pts = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData()).astype(np.float64)
-            columns = [v.reshape(v.shape[0], -1) for v in values]
-            # all attributes in one pass: the same kernel weights serve every column
-            stacked = interpolate_attributes(
-                pts, positions, radius, np.concatenate(columns, axis=1),
-                cell_size=self.cell_size, kernel=self.kernel, support_r=self.support_r,
-                blobbiness=self.blobbiness)
-            result, start = [], 0
-            for v, c in zip(values, columns):
-                part = stacked[:, start:start + c.shape[1]]
-                result.append(np.ascontiguousarray(part).reshape((n,) + v.shape[1:]))
-                start += c.shape[1]
-        for name, array in zip(names, result):
-            vtk_array = numpy_support.numpy_to_vtk(np.ascontiguousarray(array), deep=True)
-            vtk_array.SetName(name)
-            pd.AddArray(vtk_array)
-        return 1
 
 
 # --------------------------------------------------------------------------------------------
@@ -436,16 +331,21 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
                    smooth_iterations: int = SURFACE_DEFAULTS["smooth_iterations"],
                    pass_band: float = SURFACE_DEFAULTS["pass_band"],
                    normals: bool = SURFACE_DEFAULTS["normals"],
-                   attributes=SURFACE_DEFAULTS["attributes"], support_r=None,
+                   attributes=SURFACE_DEFAULTS["attributes"],
+                   volume_correction: bool = SURFACE_DEFAULTS["volume_correction"],
+                   support_r=None,
                    blobbiness: float = 4.0, radius_array: str | None = None,
-                   **splat_options) -> list:
+                   contour: str = "flying_edges", **splat_options) -> list:
     """The chain particles -> surface as a list of algorithms.
 
     ``flow.add("surface", *surface_stages(radius=0.01), input="particles")``. The defaults
-    (:data:`pipeline.surface_options.SURFACE_DEFAULTS`) are the liquid scenes' surface: anisotropic ``sph`` kernels, 25
-    sweeps of feature smoothing, 30 windowed-sinc iterations with pass band 0.01, normals,
-    ``velocity`` carried to the vertices (:func:`pipeline.surface_options.liquid_surface_options` adds a liquid's
-    radius and tank).
+    (:data:`pipeline.surface_options.SURFACE_DEFAULTS`) are the liquid scenes' surface:
+    anisotropic ``sph`` kernels, 25 sweeps of feature smoothing, 30 windowed-sinc iterations
+    with pass band 0.01, the volume correction, normals, ``velocity`` carried to the vertices
+    (:func:`pipeline.surface_options.liquid_surface_options` adds a liquid's radius and tank).
+    With ``mirror_walls`` and a :class:`filters.geometry.Box` intersected with the field, a
+    :class:`pipeline.liquid.ClipBox` follows the contour and the smoothing keeps the cut faces
+    on the walls.
 
     Parameters
     ----------
@@ -468,11 +368,20 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     attributes : sequence of str
         Particle arrays carried to the vertices (:class:`InterpolateAttributes`; empty: no such
         stage).
+    volume_correction : bool
+        Append a :class:`pipeline.liquid.VolumeCorrection` stage after the smoothing: every
+        closed piece of the surface encloses the volume of its particles, ``(2 r)^3`` each (a
+        liquid's particles). With an ``implicit`` shape intersected with the field it is the
+        container the vertices stay in (the complement of a subtracted one); not with a union
+        (the surface then encloses the shape's volume too, and no correction is made).
     support_r, blobbiness, radius_array
         As in :class:`MetaballSplat` (shared with the stages that read the particles).
+    contour : {"flying_edges", "tetrahedra"}
+        Contouring method of :class:`MarchingCubes`.
     **splat_options
         Further keyword arguments of :class:`MetaballSplat` (``iso``, ``sparse``, ``block_size``,
-        ``brick_blocks``, ``max_bytes``, ``implicit``, ``operation``, ``anisotropy``).
+        ``brick_blocks``, ``max_bytes``, ``implicit``, ``operation``, ``anisotropy``,
+        ``mirror_walls``).
 
     Returns
     -------
@@ -484,18 +393,28 @@ def surface_stages(radius: float = SURFACE_DEFAULTS["radius"], cell_size: float 
     feature_smoothing = check_int("feature_smoothing", feature_smoothing, 0, 10000)
     smooth_iterations = check_int("smooth_iterations", smooth_iterations, 0, 1000)
     normals = check_bool("normals", normals)
-    stages = [splat, MarchingCubes()]
+    walls = splat.walls
+    stages = [splat, MarchingCubes(method=contour)]
+    if walls is not None:
+        stages.append(ClipBox(walls, tolerance=0.01 * splat.cell_size))
     if feature_smoothing:
         stages.append(FeatureSmoothing(feature_smoothing, radius=radius,
-                                       radius_array=radius_array))
+                                       radius_array=radius_array, walls=walls))
     interpolate = InterpolateAttributes(attributes, radius=radius, cell_size=splat.cell_size,
                                         kernel=kernel, support_r=support_r,
                                         blobbiness=blobbiness, radius_array=radius_array)
     if interpolate.attributes:
         stages.append(interpolate)
-    smooth = Smooth(smooth_iterations, pass_band)
+    smooth = Smooth(smooth_iterations, pass_band, walls=walls)
     if smooth_iterations:
         stages.append(smooth)
+    volume_correction = check_bool("volume_correction", volume_correction)
+    if volume_correction and (splat.implicit is None or splat.operation != "union"):
+        container = splat.implicit
+        if container is not None and splat.operation == "difference":
+            container = ~container
+        stages.append(VolumeCorrection(radius=radius, radius_array=radius_array,
+                                       container=container, cell_size=splat.cell_size))
     if normals:
         stages.append(Normals())
     return stages

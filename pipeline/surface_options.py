@@ -27,6 +27,7 @@ SURFACE_DEFAULTS = {
     "pass_band": 0.01,
     "normals": True,
     "attributes": ("velocity",),
+    "volume_correction": True,
 }
 
 
@@ -42,6 +43,8 @@ SURFACE_PARAMETERS = {p.name: p for p in (
     Parameter("normals", SURFACE_DEFAULTS["normals"], "point normals"),
     Parameter("attributes", SURFACE_DEFAULTS["attributes"], "particle arrays carried",
               kind="names"),
+    Parameter("volume_correction", SURFACE_DEFAULTS["volume_correction"],
+              "pieces enclose their particles' volume"),
     Parameter("support_r", None, "support radius / particle radius", kind="float"),
     Parameter("blobbiness", 4.0, "blobby kernel's a"),
     Parameter("radius_array", None, "point array of radii (m)", kind="str"),
@@ -51,6 +54,8 @@ SURFACE_PARAMETERS = {p.name: p for p in (
     Parameter("brick_blocks", 4, "blocks per brick edge"),
     Parameter("max_bytes", DEFAULT_MAX_BYTES, "grid memory budget (bytes)"),
     Parameter("operation", "intersection", "how the tank combines with the field"),
+    Parameter("mirror_walls", False, "ghosts across the tank's walls, exact cut"),
+    Parameter("contour", "flying_edges", "flying_edges or tetrahedra"),
 )}
 
 
@@ -59,15 +64,18 @@ def liquid_surface_options(spacing: float, tank_lo=None, tank_hi=None, **options
     """Options of :func:`pipeline.surface.surface_stages` for a liquid of particle spacing ``spacing`` (m).
 
     The particle radius is half the spacing (kernel support of two spacings, as splashsurf
-    uses); with a tank, the field is intersected with its inner box ``[tank_lo, tank_hi]`` (m),
-    so the surface is flat where the liquid touches a wall instead of bulging through it; the
-    rest are :data:`SURFACE_DEFAULTS` unless given in ``options``.
+    uses); with a tank, its inner box ``[tank_lo, tank_hi]`` (m) bounds the liquid: the
+    particles near its walls are mirrored across them and the surface is cut exactly at them
+    (``mirror_walls``: flat where the liquid touches a wall, meeting the walls' edges and
+    corners without a gap), and the volume correction keeps the vertices on the walls; the rest
+    are :data:`SURFACE_DEFAULTS` unless given in ``options``.
     """
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     result = {"radius": 0.5 * spacing}
     if tank_lo is not None or tank_hi is not None:
         result["implicit"] = Box(tank_lo, tank_hi)
         result["operation"] = "intersection"
+        result["mirror_walls"] = True
     result.update(options)
     return result
 

@@ -75,8 +75,8 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         smoothed, droplets and sheets kept (see ``scenes/liquid_surface.py``).
     anisotropic : bool
         Surface from anisotropic kernels (Yu & Turk 2013), about 1.35x the reconstruction
-        time: flat water up to 2x flatter (as flat on one SPH pool), small drops 15-21 %
-        larger (see ``scenes/liquid_surface.py``); ``false`` for isotropic kernels.
+        time: flat water up to 2x flatter (as flat on one SPH pool); drops keep their volume
+        either way (see ``scenes/liquid_surface.py``); ``false`` for isotropic kernels.
     """
     simulation = drop_liquid(
         tank_length=tank_length, tank_width=tank_width, tank_height=tank_height,

@@ -1,4 +1,4 @@
-"""Shared by the liquid scenes: the reconstructed water surface, clipped to the tank."""
+"""Shared by the liquid scenes: the reconstructed water surface, cut at the tank's walls."""
 
 from __future__ import annotations
 
@@ -14,9 +14,11 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
     """Add a ``surface`` output: SPH-field splatting of the particles, contoured and smoothed.
 
     :func:`pipeline.surface_options.liquid_surface_options`: the particle radius is half the
-    spacing and the field is intersected with the tank's inner box; the other stages are those
-    of :data:`pipeline.surface_options.SURFACE_DEFAULTS` (``blobflow surface`` rebuilds the same
-    surface from the particle series and the run record).
+    spacing; the particles near the tank's walls are mirrored across them and the surface is
+    cut exactly at its inner box (:class:`pipeline.liquid.ClipBox`); every closed piece of it
+    encloses its particles' volume (:class:`pipeline.liquid.VolumeCorrection`); the other
+    stages are those of :data:`pipeline.surface_options.SURFACE_DEFAULTS` (``blobflow surface``
+    rebuilds the same surface from the particle series and the run record).
 
     Parameters
     ----------
@@ -34,7 +36,7 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
         smoothed fully, drops of a few particles and one-particle sheets are not moved.
     anisotropic : bool
         Splat anisotropic kernels (Yu & Turk 2013, :mod:`filters.surface.anisotropy`): flatter
-        water, small drops somewhat larger (measured in ``benchmarks/results/surface_notes.md``).
+        water (measured in ``benchmarks/results/surface_notes.md``).
     """
     smooth_iterations = check_int("smooth_iterations", smooth_iterations, 0, 1000)
     feature_smoothing = check_int("feature_smoothing", feature_smoothing, 0, 10000)

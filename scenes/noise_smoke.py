@@ -87,10 +87,12 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
         from pipeline.surface import surface_stages
 
         # metaballs of the particles' own radii, smoothed more and with no liquid features
+        # (smoke particles have no liquid volume to keep)
         flow.add("surface", *surface_stages(radius=radius, radius_array="size",
                                             attributes=("velocity", "age", "color"),
                                             anisotropic=False, feature_smoothing=0,
-                                            smooth_iterations=100, pass_band=0.001),
+                                            smooth_iterations=100, pass_band=0.001,
+                                            volume_correction=False),
                  input="particles")
     return flow
 

@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from ..memory import check_memory
 from ..validation import check_finite_vector, check_int, check_points, check_range
@@ -52,14 +51,15 @@ BYTES_PER_NODE = 2048
 
 @dataclass(frozen=True)
 class Embedding:
-    """A surface mesh embedded in a particle lattice by trilinear weights.
+    """A surface mesh embedded in a particle lattice by interpolation weights.
 
     Attributes
     ----------
-    nodes : (M, 8) int64 array
-        Particles of the lattice cell that holds each mesh vertex.
-    weights : (M, 8) float64 array
-        Trilinear weights (sum to 1); vertex ``j`` is at ``sum_k weights[j, k] x[nodes[j, k]]``.
+    nodes : (M, K) int64 array
+        Particles of the lattice cell that holds each mesh vertex (``K = 8``: the corners of a
+        cube, trilinear weights; ``K = 4``: the corners of a tetrahedron, barycentric weights).
+    weights : (M, K) float64 array
+        Weights (sum to 1); vertex ``j`` is at ``sum_k weights[j, k] x[nodes[j, k]]``.
     triangles : (T, 3) int64 array
         The mesh's triangles.
     rest_points : (M, 3) float64 array
@@ -389,57 +389,6 @@ def mesh_volume(points, triangles):
     return float(np.einsum("ij,ij->i", p[t[:, 0]], np.cross(p[t[:, 1]], p[t[:, 2]])).sum() / 6.0)
 
 
-def _check_closed_manifold(tris, n_points):
-    directed, _, _ = _edges(tris)
-    dkeys = directed[:, 0] * n_points + directed[:, 1]
-    if np.unique(dkeys).size != dkeys.size:
-        raise ValueError("triangles are not a consistently oriented manifold: a directed edge "
-                         "is used twice (flipped triangle or an edge shared by > 2 triangles)")
-    und = np.sort(directed, axis=1)
-    ukeys = und[:, 0] * n_points + und[:, 1]
-    _, counts = np.unique(ukeys, return_counts=True)
-    if np.any(counts != 2):
-        raise ValueError("triangles must form a closed manifold: every edge must be shared by "
-                         f"exactly two triangles ({int(np.sum(counts == 1))} boundary edges, "
-                         f"{int(np.sum(counts > 2))} non-manifold edges)")
-
-
-@njit(cache=True)
-def _inside_parity(pts, tris, origin, h, dims, jitter):
-    """Parity of +z ray crossings from every voxel centre (nx, ny, nz) uint8."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    parity = np.zeros((nx, ny, nz), dtype=np.uint8)
-    for t in range(tris.shape[0]):
-        a = pts[tris[t, 0]]
-        b = pts[tris[t, 1]]
-        c = pts[tris[t, 2]]
-        xmin = min(a[0], b[0], c[0])
-        xmax = max(a[0], b[0], c[0])
-        ymin = min(a[1], b[1], c[1])
-        ymax = max(a[1], b[1], c[1])
-        i0 = max(0, int(math.floor((xmin - origin[0]) / h - 0.5)))
-        i1 = min(nx - 1, int(math.ceil((xmax - origin[0]) / h - 0.5)))
-        j0 = max(0, int(math.floor((ymin - origin[1]) / h - 0.5)))
-        j1 = min(ny - 1, int(math.ceil((ymax - origin[1]) / h - 0.5)))
-        det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
-        if det == 0.0:
-            continue
-        for i in range(i0, i1 + 1):
-            px = origin[0] + (i + 0.5) * h + jitter[0]
-            for j in range(j0, j1 + 1):
-                py = origin[1] + (j + 0.5) * h + jitter[1]
-                l1 = ((b[0] - px) * (c[1] - py) - (c[0] - px) * (b[1] - py)) / det
-                l2 = ((c[0] - px) * (a[1] - py) - (a[0] - px) * (c[1] - py)) / det
-                l3 = 1.0 - l1 - l2
-                if l1 < 0.0 or l2 < 0.0 or l3 < 0.0:
-                    continue
-                zhit = l1 * a[2] + l2 * b[2] + l3 * c[2]
-                for k in range(nz):
-                    if origin[2] + (k + 0.5) * h < zhit:
-                        parity[i, j, k] ^= 1
-    return parity
-
-
 def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
     """Voxelise a closed mesh into a spring lattice and embed the mesh in it.
 
@@ -472,33 +421,11 @@ def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
     tris = check_triangles("triangles", triangles, pts.shape[0])
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     density = check_range("density", density, 0.0, math.inf, low_inclusive=False)
-    _check_closed_manifold(tris, pts.shape[0])
-    volume = mesh_volume(pts, tris)
-    lo = pts.min(axis=0)
-    hi = pts.max(axis=0)
-    diag = float(np.linalg.norm(hi - lo))
-    if abs(volume) <= 1e-9 * diag ** 3 or diag == 0.0:
-        raise ValueError("the mesh encloses no volume (flat or degenerate): a jello needs an "
-                         "interior")
-    if volume < 0.0:  # inward normals: flip so that the volume is positive
-        tris = tris[:, ::-1].copy()
-        volume = -volume
-    origin = lo - 0.25 * spacing
-    dims_f = np.maximum(np.ceil((hi + 0.25 * spacing - origin) / spacing), 1.0)
-    # the lattice's box bounds its nodes; the parity grid holds one byte per cell
-    check_memory(f"a jello lattice of {dims_f[0]:.0f} x {dims_f[1]:.0f} x {dims_f[2]:.0f} cells "
-                 f"at spacing = {spacing:g} m", float(np.prod(dims_f + 1.0)) * BYTES_PER_NODE,
-                 "increase spacing")
-    dims = dims_f.astype(np.int64)
-    jitter = np.array([1.234567e-7, 2.345678e-7]) * spacing
-    parity = _inside_parity(pts, tris, origin, spacing, dims, jitter)
-    active = parity.astype(bool)
-    if not active.any():
-        raise ValueError(f"no lattice cell centre lies inside the mesh at spacing = {spacing:g} m; "
-                         "use a smaller spacing")
-    cell = np.clip(np.floor((pts - origin) / spacing).astype(np.int64), 0, dims - 1)
-    active[cell[:, 0], cell[:, 1], cell[:, 2]] = True
-    cells = np.argwhere(active)  # (C, 3)
+    from .voxelize import voxelize_mesh
+
+    vox = voxelize_mesh(pts, tris, spacing)
+    tris, volume, origin, dims = vox.triangles, vox.volume, vox.origin, vox.dims
+    cells, cell = vox.cells, vox.vertex_cells
     corner_offsets = np.array([[i, j, k] for k in (0, 1) for j in (0, 1) for i in (0, 1)])
     corners = cells[:, None, :] + corner_offsets[None, :, :]  # (C, 8, 3)
     nd = dims + 1

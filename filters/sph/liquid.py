@@ -22,21 +22,20 @@ import math
 import numba
 import numpy as np
 
-from .boundary import BoundaryParticles, lattice_volume, sort_boundary
+from .boundary import lattice_volume, sort_boundary
 from .dfsph import DFSPHSolver, boundary_reach_mask
 from . import forces, particles
 from .model import SPHModel, as_field, check_boxes, default_support_factor
+from .parameters import check_liquid_parameters
 from ..kernels import kernel_id
 from ..binning import cell_keys, counting_sort
 from ..neighbors import bounds, grid_query_padded
 from ..simulation import OutputSpec, Simulation, SimulationUnstableError, State, Frame
-from ..validation import check_choice, check_finite_vector, check_int, check_range
 
 __all__ = ["SPHModel", "SPHLiquid", "default_support_factor"]
 
 
 _CELL_PAD = 1.0 + 1e-9
-_DFSPH_MAX_DT = 0.005  # s, default largest DFSPH step
 _DFSPH_MIN_DT = 1e-5  # s, smallest DFSPH step (a faster fluid is a blow-up here)
 _DFSPH_BUSY = 20  # density-solve iterations above which the next step shrinks
 _DFSPH_EASY = 10  # ... below which it may grow again
@@ -169,47 +168,19 @@ class SPHLiquid(Simulation):
                  boundary_pressure="adami", skin=0.2, threads=None, solver="wcsph",
                  max_density_error=1e-3, max_divergence_error=1e-2, max_iterations=100,
                  kinematic_viscosity=None):
-        spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
-        if not math.isfinite(spacing):
-            raise ValueError(f"spacing must be finite (m), got {spacing!r}")
-        rest_density = check_range("rest_density", rest_density, 0.0, 1e6, low_inclusive=False)
-        check_choice("kernel", kernel, ("cubic", "wendland"))
-        if support_factor is None:
-            support_factor = default_support_factor(kernel)
-        support_factor = check_range("support_factor", support_factor, 1.5, 4.0)
-        if speed_of_sound is not None:
-            speed_of_sound = check_range("speed_of_sound", speed_of_sound, 0.0, 1e5,
-                                         low_inclusive=False)
-        gamma = check_range("gamma", gamma, 1.0, 10.0)
-        viscosity = check_range("viscosity", viscosity, 0.0, 1.0)
-        if boundary_viscosity is None:
-            boundary_viscosity = viscosity
-        boundary_viscosity = check_range("boundary_viscosity", boundary_viscosity, 0.0, 1.0)
-        xsph = check_range("xsph", xsph, 0.0, 1.0, high_inclusive=False)
-        surface_tension = check_range("surface_tension", surface_tension, 0.0, 100.0)
-        gravity = check_finite_vector("gravity", gravity, 3)
+        (spacing, rest_density, support_factor, speed_of_sound, gamma, viscosity,
+         boundary_viscosity, xsph, surface_tension, gravity, cfl, max_dt, density_error_limit,
+         skin, threads, max_density_error, max_divergence_error, max_iterations,
+         kinematic_viscosity) = check_liquid_parameters(
+            spacing=spacing, boundary=boundary, rest_density=rest_density, kernel=kernel,
+            support_factor=support_factor, speed_of_sound=speed_of_sound, gamma=gamma,
+            viscosity=viscosity, boundary_viscosity=boundary_viscosity, xsph=xsph,
+            surface_tension=surface_tension, gravity=gravity, cfl=cfl, max_dt=max_dt,
+            density_error_limit=density_error_limit, boundary_pressure=boundary_pressure,
+            skin=skin, threads=threads, solver=solver, max_density_error=max_density_error,
+            max_divergence_error=max_divergence_error, max_iterations=max_iterations,
+            kinematic_viscosity=kinematic_viscosity)
         field = as_field(external)
-        cfl = check_range("cfl", cfl, 0.0, 1.0, low_inclusive=False)
-        check_choice("solver", solver, ("wcsph", "dfsph"))
-        if max_dt is None:
-            max_dt = _DFSPH_MAX_DT if solver == "dfsph" else 1.0 / 240.0
-        max_dt = check_range("max_dt", max_dt, 0.0, 1.0, low_inclusive=False)
-        max_density_error = check_range("max_density_error", max_density_error, 1e-6, 0.1)
-        max_divergence_error = check_range("max_divergence_error", max_divergence_error,
-                                           1e-6, 1.0)
-        max_iterations = check_int("max_iterations", max_iterations, 2, 10000)
-        if kinematic_viscosity is not None:
-            kinematic_viscosity = check_range("kinematic_viscosity", kinematic_viscosity, 0.0, 1.0)
-            if solver != "dfsph":
-                raise ValueError("kinematic_viscosity needs solver='dfsph' (WCSPH uses viscosity)")
-        density_error_limit = check_range("density_error_limit", density_error_limit, 0.0, 1.0,
-                                          low_inclusive=False)
-        check_choice("boundary_pressure", boundary_pressure, ("adami", "mirror"))
-        skin = check_range("skin", skin, 0.0, 1.0)
-        if threads is not None:
-            threads = check_int("threads", threads, 1, numba.config.NUMBA_NUM_THREADS)
-        if boundary is not None and not isinstance(boundary, BoundaryParticles):
-            raise TypeError(f"boundary must be BoundaryParticles or None, got {type(boundary).__name__}")
         state = State(positions, velocities)
         if state.n_points == 0:
             raise ValueError("positions must contain at least one particle")

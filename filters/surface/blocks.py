@@ -28,7 +28,8 @@ from ..binning import counting_sort, index_keys, lookup
 from .grid import (SparseGrid, block_keys, check_budget, corner_index, pack_key, unpack_key,
                    unpack_keys)
 
-__all__ = ["bin_by_block", "grown_block_box", "classify_and_evaluate", "evaluate_rounds"]
+__all__ = ["bin_by_block", "grown_block_box", "classify_and_evaluate", "evaluate_rounds",
+           "blocks_meeting_box"]
 
 
 @njit(cache=True)
@@ -85,6 +86,30 @@ def grown_block_box(key, bsz):
     hiy = loy + bsz + 1.0
     hiz = loz + bsz + 1.0
     return bx, by, bz, lox, loy, loz, hix, hiy, hiz
+
+
+def blocks_meeting_box(keys, block_size: int, cell_size: float, lower, upper):
+    """Which blocks, grown by one voxel, meet the box ``[lower, upper]`` (m).
+
+    Parameters
+    ----------
+    keys : (K,) int64
+        Block keys.
+    block_size : int
+        Voxels per block edge.
+    cell_size : float
+        Voxel edge (m).
+    lower, upper : (3,) float
+        Corners of the box (m).
+
+    Returns
+    -------
+    (K,) bool
+    """
+    b = unpack_keys(np.asarray(keys, np.int64)).astype(np.float64)
+    lo = (b * block_size - 1.0) * cell_size
+    hi = ((b + 1.0) * block_size + 1.0) * cell_size
+    return np.all((hi >= np.asarray(lower)) & (lo <= np.asarray(upper)), axis=1)
 
 
 def classify_and_evaluate(active, *, block_size: int, cell_size: float, max_bytes: int,

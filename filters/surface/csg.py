@@ -24,7 +24,7 @@ from .grid import (
     unpack_keys,
     DEFAULT_MAX_BYTES,
 )
-from ..geometry import Shape
+from ..geometry import Box, Shape
 from ..validation import check_choice, check_range
 
 __all__ = ["combine_dense", "combine_sparse", "OPERATIONS"]
@@ -41,6 +41,25 @@ def _apply(op, field, shape):
     if op == "intersection":
         return np.maximum(field, shape)
     return np.maximum(field, -shape)
+
+
+def _box_blocks(box, origins, bsz, cell):
+    """Signed distance of a Box at the voxels of blocks with corners ``origins`` (B, 3) (m):
+    (B, bsz, bsz, bsz) as [z, y, x], from the per-axis distances (the voxels of a block are
+    a product of three rows); the formula of :meth:`filters.geometry.Box.evaluate`."""
+    lo = np.asarray(box.lower, np.float64)
+    hi = np.asarray(box.upper, np.float64)
+    c = 0.5 * (lo + hi)
+    half = 0.5 * (hi - lo)
+    idx = np.arange(bsz, dtype=np.float64) * cell
+    q = np.abs(origins[:, :, None] + idx[None, None, :] - c[None, :, None]) - half[None, :, None]
+    qx = q[:, 0][:, None, None, :]
+    qy = q[:, 1][:, None, :, None]
+    qz = q[:, 2][:, :, None, None]
+    outside = np.sqrt(np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2
+                      + np.maximum(qz, 0.0) ** 2)
+    inside = np.minimum(np.maximum(np.maximum(qx, qy), qz), 0.0)
+    return outside + inside
 
 
 def _voxel_centres(index_lo, shape_zyx, cell):
@@ -162,8 +181,11 @@ def combine_sparse(grid: SparseGrid, shape: Shape, operation: str = "intersectio
         for start in range(0, sel.size, _BLOCKS_PER_CALL):
             part = sel[start:start + _BLOCKS_PER_CALL]
             origins = unpack_keys(keys[part]).astype(np.float64) * bsz * cell
-            pts = (origins[:, None, :] + local[None, :, :]).reshape(-1, 3)
-            s = (shape.evaluate(pts) * scale).astype(np.float32).reshape(-1, bsz, bsz, bsz)
+            if isinstance(shape, Box):
+                s = (_box_blocks(shape, origins, bsz, cell) * scale).astype(np.float32)
+            else:
+                pts = (origins[:, None, :] + local[None, :, :]).reshape(-1, 3)
+                s = (shape.evaluate(pts) * scale).astype(np.float32).reshape(-1, bsz, bsz, bsz)
             vals = (grid.data[part] if base is None
                     else np.full((part.size,) + (bsz,) * 3, base, np.float32))
             new_e_keys.append(keys[part])

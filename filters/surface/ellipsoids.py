@@ -9,10 +9,12 @@ to the field, with ``K`` one of the unit-support kernels of :mod:`filters.surfac
 of ``q^2`` (peak 1): ``sph`` (Monaghan's cubic spline), ``metaball`` (Wyvill et al. 1986) or
 ``blobby`` (Blinn 1982). This is Yu & Turk's (2013) anisotropic kernel ``W(r, G) = sigma det(G)
 P(|G r|)``: the ``det(G)`` and the normalisation ``sigma`` live in ``a_j``. For the ``sph``
-kernel :func:`splat_sparse_anisotropic` uses ``a_j = V_j (8 / pi) det(G_j)`` with the SPH
-volume ``V_j`` (m^3, voxel units inside; for ellipsoids under the ellipsoidal kernels
-themselves, :func:`filters.surface.anisotropy.anisotropic_volumes`), i.e. the SPH colour field
-``sum_j V_j W_j(x)``, which is about 1 inside the liquid; for the other kernels
+kernel :func:`filters.surface.splat.splat_sparse_anisotropic` uses ``a_j = V_j (8 / pi)
+det(G_j) gain(a_j)`` with the SPH volume ``V_j`` (m^3, voxel units inside; for ellipsoids under
+the ellipsoidal kernels themselves, :func:`filters.surface.volumes.anisotropic_volumes`), i.e.
+the SPH colour field ``sum_j V_j W_j(x)``, which is about 1 inside the liquid, with the
+amplitudes of stretched kernels raised by :func:`filters.surface.volumes.stretched_gain`; for
+the other kernels
 ``a_j = det(G_j) h_j^3`` (1 for the volume-keeping matrices of :mod:`filters.surface.anisotropy`, more
 where their long axis is capped), which keeps each particle's integral that of the isotropic
 kernel.
@@ -51,7 +53,7 @@ from numba import njit, prange
 from ..binning import EMPTY_KEY, insert_key, lookup
 from ..kernels import splat_kernel_id, splat_row_profile
 from ..validation import check_choice, check_int, check_points, check_range
-from .blocks import bin_by_block, classify_and_evaluate, grown_block_box
+from .blocks import bin_by_block, blocks_meeting_box, classify_and_evaluate, grown_block_box
 from .grid import (DEFAULT_MAX_BYTES, DenseField, SparseGrid, check_block_range, check_budget,
                    pack_key, unpack_key)
 
@@ -66,15 +68,11 @@ __all__ = [
 #: Kernels the ellipsoid splatter supports (ids as in :mod:`filters.surface.splat`).
 ANISOTROPIC_KERNELS = ("blobby", "metaball", "sph")
 
-#: Default iso values of the anisotropic fields. For ``sph`` 0.367, calibrated once (default
-#: kernel options and volumes) so that the flat top of an unjittered lattice pool lies on the
-#: true plane, half a spacing above the top layer (``benchmarks/results/surface_notes.md``).
-#: Lower than the isotropic kernel's 0.6 because the flattened top-layer kernels overlap within
-#: their layer, so their volumes (:func:`filters.surface.volumes.anisotropic_volumes`) are
-#: small and the field half a spacing above the top layer is weak. ``metaball`` and ``blobby``
-#: keep the isotropic kernels' 0.5 (not calibrated).
-ANISOTROPIC_ISO = {"sph": 0.367, "metaball": 0.5, "blobby": 0.5}
-
+#: Default iso values of the anisotropic fields: those of the isotropic kernels
+#: (:data:`filters.kernels.SPLAT_DEFAULTS`), so that a drop whose kernels are (nearly) spherical
+#: comes out as with isotropic kernels; the ``sph`` amplitudes of stretched kernels are raised
+#: instead (:func:`filters.surface.volumes.stretched_gain`).
+ANISOTROPIC_ISO = {"sph": 0.6, "metaball": 0.5, "blobby": 0.5}
 
 # --------------------------------------------------------------------------------------------
 # Per-particle preparation
@@ -432,12 +430,15 @@ def _check_inputs(centres, G, amplitude, cell_size, kernel, iso, block_size, blo
 def ellipsoid_grid(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso=None,
                    block_size: int = 8, blobbiness: float = 4.0,
                    max_bytes: int = DEFAULT_MAX_BYTES, skip_interior: bool = True,
-                   evaluate_all: bool = False, trusted: bool = False) -> SparseGrid:
+                   evaluate_all: bool = False, trusted: bool = False,
+                   domain=None) -> SparseGrid:
     """Implicit values of ellipsoidal kernels on the blocks of the voxel lattice near the surface.
 
     Parameters as in :func:`splat_ellipsoids_sparse`; ``evaluate_all`` evaluates every
     candidate block (the dense grid's values); ``trusted`` skips the checks of ``G`` (finite,
-    positive definite) for matrices from :func:`filters.surface.anisotropy.kernel_matrices`.
+    positive definite) for matrices from :func:`filters.surface.anisotropy.kernel_matrices`;
+    ``domain`` ``(lower, upper)`` (m) keeps only the candidate blocks that meet that box grown
+    by one voxel (the others count as outside), as in :func:`filters.surface.spheres.sphere_grid`.
 
     Returns
     -------
@@ -485,6 +486,8 @@ def ellipsoid_grid(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso
     iso32 = np.float32(iso)
     # candidate blocks: per home block, the box of blocks its particles' bounding boxes touch
     active = _touched_blocks(P, E, start, unique, bsz)
+    if domain is not None:
+        active = active[blocks_meeting_box(active, bsz, cell_size, *domain)]
 
     def evaluate(targets, data, first):
         _evaluate_blocks(targets, data, first, bsz, P, M6, E, SR, BE, A, start, table, ranks,
@@ -550,10 +553,11 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
 
 def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso=None,
                            block_size: int = 8, blobbiness: float = 4.0,
-                           max_bytes: int = DEFAULT_MAX_BYTES) -> DenseField:
+                           max_bytes: int = DEFAULT_MAX_BYTES, domain=None) -> DenseField:
     """Like :func:`splat_ellipsoids_sparse` but every reachable voxel evaluated, returned as a
     dense box (:class:`filters.surface.grid.DenseField`) covering the evaluated blocks plus one
-    outside voxel layer; voxels no kernel reaches hold ``iso``."""
+    outside voxel layer; voxels no kernel reaches hold ``iso``; ``domain`` as in
+    :func:`ellipsoid_grid`."""
     centres = check_points("centres", centres)
     if centres.shape[0]:
         cs = check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
@@ -566,5 +570,5 @@ def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "s
                          f"a dense grid of about {ext.astype(int).tolist()} voxels")
     grid = ellipsoid_grid(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
                           block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,
-                          evaluate_all=True)
+                          evaluate_all=True, domain=domain)
     return grid.to_dense(max_bytes=max_bytes)

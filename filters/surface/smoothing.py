@@ -175,7 +175,7 @@ def feature_weights(vertices, positions, radius: float, *, reach_r: float = 8.0,
 
 
 @njit(parallel=True, cache=True)
-def _sweeps(x, offsets, neighbors, step, iterations):
+def _sweeps(x, offsets, neighbors, step, free, iterations):
     y = x.copy()
     z = np.empty_like(x)
     for _ in range(iterations):
@@ -197,15 +197,15 @@ def _sweeps(x, offsets, neighbors, step, iterations):
                 m2 += y[u, 2]
             inv = 1.0 / (b - a)
             s = step[v]
-            z[v, 0] = y[v, 0] + s * (m0 * inv - y[v, 0])
-            z[v, 1] = y[v, 1] + s * (m1 * inv - y[v, 1])
-            z[v, 2] = y[v, 2] + s * (m2 * inv - y[v, 2])
+            z[v, 0] = y[v, 0] + s * free[v, 0] * (m0 * inv - y[v, 0])
+            z[v, 1] = y[v, 1] + s * free[v, 1] * (m1 * inv - y[v, 1])
+            z[v, 2] = y[v, 2] + s * free[v, 2] * (m2 * inv - y[v, 2])
         y, z = z, y
     return y
 
 
 def weighted_laplacian(vertices, triangles, weights, *, iterations: int = 25,
-                       beta: float = 1.0):
+                       beta: float = 1.0, free=None):
     """``iterations`` Jacobi sweeps ``v <- v + beta w_v (mean of edge neighbours - v)``.
 
     Parameters
@@ -220,6 +220,10 @@ def weighted_laplacian(vertices, triangles, weights, *, iterations: int = 25,
         Number of sweeps, in [0, 10000].
     beta : float
         Step, in (0, 1].
+    free : (V, 3) float64, optional
+        Per-vertex, per-axis factors of the step in [0, 1] (0: the vertex does not move along
+        that axis, e.g. a vertex on a wall of the liquid's tank,
+        :func:`filters.surface.clip.wall_constraints`); all 1 by default.
 
     Returns
     -------
@@ -234,16 +238,24 @@ def weighted_laplacian(vertices, triangles, weights, *, iterations: int = 25,
         raise ValueError(f"weights must have shape ({vertices.shape[0]},), got {w.shape}")
     if w.size and not (np.isfinite(w).all() and w.min() >= 0.0 and w.max() <= 1.0):
         raise ValueError("weights must be finite and in [0, 1]")
+    if free is None:
+        free = np.ones((vertices.shape[0], 3))
+    free = np.ascontiguousarray(free, dtype=np.float64)
+    if free.shape != vertices.shape:
+        raise ValueError(f"free must have shape {vertices.shape}, got {free.shape}")
+    if free.size and not (np.isfinite(free).all() and free.min() >= 0.0 and free.max() <= 1.0):
+        raise ValueError("free must be finite and in [0, 1]")
     offsets, neighbors = vertex_neighbors(triangles, vertices.shape[0])
     if iterations == 0 or vertices.shape[0] == 0:
         return vertices.copy()
-    return _sweeps(vertices, offsets, neighbors, beta * w, iterations)
+    return _sweeps(vertices, offsets, neighbors, beta * w, free, iterations)
 
 
 def smooth_surface(vertices, triangles, positions, radius: float, *, iterations: int = 25,
                    beta: float = 1.0, reach_r: float = 8.0, low: float = 0.5,
-                   high: float = 1.0):
-    """:func:`feature_weights` then :func:`weighted_laplacian` (see the module docstring).
+                   high: float = 1.0, free=None):
+    """:func:`feature_weights` then :func:`weighted_laplacian` (see the module docstring;
+    ``free`` as there).
 
     Returns
     -------
@@ -251,4 +263,5 @@ def smooth_surface(vertices, triangles, positions, radius: float, *, iterations:
         Smoothed vertices; the triangles are unchanged.
     """
     w = feature_weights(vertices, positions, radius, reach_r=reach_r, low=low, high=high)
-    return weighted_laplacian(vertices, triangles, w, iterations=iterations, beta=beta)
+    return weighted_laplacian(vertices, triangles, w, iterations=iterations, beta=beta,
+                              free=free)

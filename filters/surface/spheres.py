@@ -32,7 +32,7 @@ from numba import njit, prange
 
 from ..binning import lookup
 from ..kernels import ZHU_BRIDSON, splat_kernel_id, splat_profile, splat_row_profile
-from .blocks import bin_by_block, classify_and_evaluate, grown_block_box
+from .blocks import bin_by_block, blocks_meeting_box, classify_and_evaluate, grown_block_box
 from .grid import SparseGrid, check_budget, dilate_keys, pack_key, unpack_key
 
 __all__ = ["sphere_grid"]
@@ -384,7 +384,8 @@ def _evaluate_sum(targets, out, first, bsz, P, H, A, start, table, ranks, reach,
 
 def sphere_grid(positions, radii, cell_size: float, *, kernel: str, support_r: float,
                 iso: float, block_size: int, blobbiness: float, max_bytes: int,
-                skip_interior: bool = True, evaluate_all: bool = False) -> SparseGrid:
+                skip_interior: bool = True, evaluate_all: bool = False,
+                domain=None) -> SparseGrid:
     """Implicit values of spherical kernels on the blocks of the voxel lattice near the surface.
 
     Parameters
@@ -411,6 +412,9 @@ def sphere_grid(positions, radii, cell_size: float, *, kernel: str, support_r: f
         Mark blocks whose corner samples are all clearly inside without evaluating them.
     evaluate_all : bool
         Evaluate every candidate block (the dense grid's values).
+    domain : tuple of two (3,) arrays, optional
+        ``(lower, upper)`` (m): only blocks that meet this box (grown by one voxel) are
+        candidates; the others count as outside (for a field then intersected with the box).
 
     Returns
     -------
@@ -460,6 +464,8 @@ def sphere_grid(positions, radii, cell_size: float, *, kernel: str, support_r: f
     far32 = np.float32(far)
     # candidate blocks: those holding a voxel within some particle's support
     active = dilate_keys(unique, int(math.ceil(hmax / bsz - 1e-9)))
+    if domain is not None:
+        active = active[blocks_meeting_box(active, bsz, cell_size, *domain)]
     if kid == ZHU_BRIDSON:
         def evaluate(targets, data, first):
             _evaluate_zhu_bridson(targets, data, first, bsz, P, Hs, Rs, start, table, ranks,

@@ -24,11 +24,13 @@ import numpy as np
 from ..kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from ..validation import check_bool, check_choice, check_int, check_points, check_radii, check_range
 from .anisotropy import check_anisotropy, kernel_matrices
+from .covariance import SMOOTHING_RAMP
 from .ellipsoids import ANISOTROPIC_ISO, ANISOTROPIC_KERNELS, ellipsoid_grid, splat_ellipsoids_dense
 from .grid import (DEFAULT_MAX_BYTES, DenseField, GridTooLargeError, SparseGrid, check_block_range,
                    check_budget)
 from .spheres import sphere_grid
-from .volumes import ellipsoid_volumes
+from .volumes import ellipsoid_volumes, stretched_gain
+from .walls import WALL_MARGIN_R, check_walls, grow_walls, mirror_ghosts, mirror_matrices
 
 __all__ = [
     "GridTooLargeError",
@@ -77,7 +79,7 @@ def check_splat_args(positions, radius, cell_size, kernel, support_r, iso, block
 
 def splat_sparse(positions, radius, cell_size, *, kernel: str = "sph", support_r=None, iso=None,
                  block_size: int = 8, blobbiness: float = 4.0, skip_interior: bool = True,
-                 max_bytes: int = DEFAULT_MAX_BYTES) -> SparseGrid:
+                 max_bytes: int = DEFAULT_MAX_BYTES, walls=None) -> SparseGrid:
     """Splat particles onto the blocks of the voxel lattice that the surface passes near.
 
     Parameters
@@ -111,6 +113,12 @@ def splat_sparse(positions, radius, cell_size, *, kernel: str = "sph", support_r
         :mod:`filters.surface.blocks`).
     max_bytes : int
         Memory budget (bytes), >= 1; :class:`GridTooLargeError` if the grid would need more.
+    walls : filters.geometry.Box or (lower, upper), optional
+        The liquid's box-shaped container (m): particles within a kernel support of its walls
+        are mirrored across them (ghost particles, :mod:`filters.surface.walls`), so that the
+        field near a wall is the interior's, and only blocks that meet the box grown by
+        :data:`filters.surface.walls.WALL_MARGIN_R` radii are computed (the others count as
+        outside): the surface continues through the walls, to be cut at them.
 
     Returns
     -------
@@ -121,11 +129,13 @@ def splat_sparse(positions, radius, cell_size, *, kernel: str = "sph", support_r
      max_bytes) = check_splat_args(positions, radius, cell_size, kernel, support_r, iso,
                                    block_size, blobbiness, max_bytes)
     skip_interior = check_bool("skip_interior", skip_interior)
+    walls = check_walls(walls)
     # before any key is computed: far-apart points must not wrap past 2^20 blocks
     check_block_range("positions", positions, cell_size, block_size)
+    positions, radii, domain = _with_ghosts(positions, radii, walls, support_r)
     return sphere_grid(positions, radii, cell_size, kernel=kernel, support_r=support_r, iso=iso,
                        block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,
-                       skip_interior=skip_interior)
+                       skip_interior=skip_interior, domain=domain)
 
 
 def _check_dense_budget(positions, cell_size, block_size, max_bytes, extent_m):
@@ -139,7 +149,7 @@ def _check_dense_budget(positions, cell_size, block_size, max_bytes, extent_m):
 
 def splat_dense(positions, radius, cell_size, *, kernel: str = "sph", support_r=None, iso=None,
                 block_size: int = 8, blobbiness: float = 4.0,
-                max_bytes: int = DEFAULT_MAX_BYTES) -> DenseField:
+                max_bytes: int = DEFAULT_MAX_BYTES, walls=None) -> DenseField:
     """Splat particles onto a dense box of the voxel lattice: every reachable voxel evaluated.
 
     Same parameters as :func:`splat_sparse`. The box covers every voxel within the particles'
@@ -153,12 +163,31 @@ def splat_dense(positions, radius, cell_size, *, kernel: str = "sph", support_r=
     (positions, radii, kernel, cell_size, support_r, iso, block_size, blobbiness,
      max_bytes) = check_splat_args(positions, radius, cell_size, kernel, support_r, iso,
                                    block_size, blobbiness, max_bytes)
+    walls = check_walls(walls)
     rmax = float(radii.max()) if radii.size else 0.0
     _check_dense_budget(positions, cell_size, block_size, max_bytes, support_r * rmax)
+    positions, radii, domain = _with_ghosts(positions, radii, walls, support_r)
     grid = sphere_grid(positions, radii, cell_size, kernel=kernel, support_r=support_r, iso=iso,
                        block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,
-                       evaluate_all=True)
+                       evaluate_all=True, domain=domain)
     return grid.to_dense(max_bytes=max_bytes)
+
+
+def _domain(walls, radii):
+    """The box of the blocks computed with ``walls``: the walls grown by WALL_MARGIN_R radii."""
+    if walls is None:
+        return None
+    return grow_walls(walls, WALL_MARGIN_R * (float(radii.max()) if radii.size else 0.0))
+
+
+def _with_ghosts(positions, radii, walls, reach_r):
+    """The particles and their ghosts across ``walls`` (those within ``reach_r`` radii of a
+    wall); positions, radii and the domain of the blocks to compute."""
+    if walls is None or not positions.shape[0]:
+        return positions, radii, _domain(walls, radii)
+    ghosts, source, _, _ = mirror_ghosts(positions, *walls, reach_r * float(radii.max()))
+    return (np.ascontiguousarray(np.concatenate([positions, ghosts])),
+            np.concatenate([radii, radii[source]]), _domain(walls, radii))
 
 
 # --------------------------------------------------------------------------------------------
@@ -166,25 +195,42 @@ def splat_dense(positions, radius, cell_size, *, kernel: str = "sph", support_r=
 # --------------------------------------------------------------------------------------------
 
 
-def _anisotropic_inputs(positions, radii, kernel, support_r, options):
-    """Kernel centres, matrices and amplitudes of the anisotropic splat."""
-    centres, G, volumes, det = kernel_matrices(positions, radii, support_r=support_r,
-                                               **options)
-    if kernel == "sph":
-        # the ellipsoids' volumes under the ellipsoids themselves (anisotropic_volumes); the
-        # spherical kernels inside the liquid keep their SPH volumes
+def _anisotropic_inputs(positions, radii, kernel, support_r, options, walls=None):
+    """Kernel centres, matrices and amplitudes of the anisotropic splat (with the ghosts across
+    ``walls`` appended, whose kernels mirror their particles')."""
+    n = positions.shape[0]
+    opts = check_anisotropy(support_r, **options)
+    if walls is not None and n:
+        reach = max(opts["neighbor_radius_r"], opts["max_axis_h"] * support_r) * radii.max()
+        ghosts, source, signs, shifts = mirror_ghosts(positions, *walls, reach)
+        positions = np.ascontiguousarray(np.concatenate([positions, ghosts]))
+        radii = np.concatenate([radii, radii[source]])
+    k = kernel_matrices(positions, radii, support_r=support_r, targets=n, **options)
+    if positions.shape[0] > n:
+        # a ghost's kernel is its particle's, mirrored
+        k.centres[n:] = k.centres[source] * signs + shifts
+        k.G[n:] = mirror_matrices(k.G[source], signs)
+        for field in (k.volumes, k.dets, k.strength, k.anisotropy):
+            field[n:] = field[source]
+    if kernel != "sph":
+        return k.centres, k.G, k.dets * (support_r * radii) ** 3
+    # the ellipsoids' volumes under the ellipsoids themselves (anisotropic_volumes), faded in
+    # with the strength of the anisotropy; the spherical kernels keep their SPH volumes
+    volumes = k.volumes
+    aniso = k.strength > 0.0
+    if aniso[:n].any():
         hs = support_r * radii
-        aniso = ~np.all(G == np.eye(3) / hs[:, None, None], axis=(1, 2))
-        if aniso.any():
-            # no semi-axis is longer than max_axis_h * h (anisotropic_kernels)
-            max_axis_h = check_anisotropy(support_r, **options)["max_axis_h"]
-            consistent = ellipsoid_volumes(centres, G, det, (radii / radii.max()) ** 3, aniso,
-                                           max_axis_h * float(hs.max()))
-            volumes = np.where(aniso, consistent, volumes)
-        amplitude = volumes * (8.0 / math.pi) * det
-    else:
-        amplitude = det * (support_r * radii) ** 3
-    return centres, G, amplitude
+        # no semi-axis is longer than max_axis_h * h (anisotropic_kernels)
+        need = aniso.copy()
+        need[n:] = False
+        consistent = ellipsoid_volumes(k.centres, k.G, k.dets, (radii / radii.max()) ** 3,
+                                       need, opts["max_axis_h"] * float(hs.max()))
+        if positions.shape[0] > n:
+            consistent[n:] = consistent[source]
+        fade = np.minimum(k.strength / SMOOTHING_RAMP, 1.0)
+        volumes = np.where(aniso, volumes + fade * (consistent - volumes), volumes)
+    amplitude = volumes * (8.0 / math.pi) * k.dets * stretched_gain(k.anisotropy)
+    return k.centres, k.G, amplitude
 
 
 def _check_anisotropic(positions, radius, cell_size, kernel, support_r, iso, block_size,
@@ -202,7 +248,8 @@ def _check_anisotropic(positions, radius, cell_size, kernel, support_r, iso, blo
 def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph",
                              support_r=None, iso=None, block_size: int = 8,
                              blobbiness: float = 4.0, skip_interior: bool = True,
-                             max_bytes: int = DEFAULT_MAX_BYTES, **anisotropy) -> SparseGrid:
+                             max_bytes: int = DEFAULT_MAX_BYTES, walls=None,
+                             **anisotropy) -> SparseGrid:
     """Particles -> implicit field with anisotropic kernels (Yu & Turk 2013), sparse grid.
 
     A drop-in for :func:`splat_sparse` (same first parameters, same output):
@@ -224,6 +271,9 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
         Iso value (default :data:`filters.surface.ellipsoids.ANISOTROPIC_ISO`).
     block_size, blobbiness, skip_interior, max_bytes
         As in :func:`splat_sparse`.
+    walls : filters.geometry.Box or (lower, upper), optional
+        As in :func:`splat_sparse`; the ghosts reach as far as the neighbourhoods, and each
+        mirrors its particle's kernel.
     **anisotropy
         Options of :func:`filters.surface.anisotropy.anisotropic_kernels`
         (``neighbor_radius_r``, ``stretch``, ``min_neighbors``, ``smoothing``,
@@ -237,23 +287,28 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
      max_bytes) = _check_anisotropic(positions, radius, cell_size, kernel, support_r, iso,
                                      block_size, blobbiness, max_bytes, anisotropy)
     skip_interior = check_bool("skip_interior", skip_interior)
-    centres, G, amplitude = _anisotropic_inputs(positions, radii, kernel, support_r, anisotropy)
+    walls = check_walls(walls)
+    centres, G, amplitude = _anisotropic_inputs(positions, radii, kernel, support_r, anisotropy,
+                                                walls)
     return ellipsoid_grid(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
                           block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,
-                          skip_interior=skip_interior, trusted=True)
+                          skip_interior=skip_interior, trusted=True,
+                          domain=_domain(walls, radii))
 
 
 def splat_dense_anisotropic(positions, radius, cell_size, *, kernel: str = "sph",
                             support_r=None, iso=None, block_size: int = 8,
                             blobbiness: float = 4.0, max_bytes: int = DEFAULT_MAX_BYTES,
-                            **anisotropy) -> DenseField:
+                            walls=None, **anisotropy) -> DenseField:
     """Dense counterpart of :func:`splat_sparse_anisotropic` (a drop-in for
     :func:`splat_dense`); same parameters, returns a
     :class:`filters.surface.grid.DenseField`."""
     (positions, radii, kernel, cell_size, support_r, iso, block_size, blobbiness,
      max_bytes) = _check_anisotropic(positions, radius, cell_size, kernel, support_r, iso,
                                      block_size, blobbiness, max_bytes, anisotropy)
-    centres, G, amplitude = _anisotropic_inputs(positions, radii, kernel, support_r, anisotropy)
+    walls = check_walls(walls)
+    centres, G, amplitude = _anisotropic_inputs(positions, radii, kernel, support_r, anisotropy,
+                                                walls)
     return splat_ellipsoids_dense(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
                                   block_size=block_size, blobbiness=blobbiness,
-                                  max_bytes=max_bytes)
+                                  max_bytes=max_bytes, domain=_domain(walls, radii))

@@ -19,7 +19,36 @@ from ..binning import cell_window, fitting_cells, sort_into_cells
 from ..kernels import spline_row
 from ..validation import check_points
 
-__all__ = ["anisotropic_volumes", "ellipsoid_volumes"]
+__all__ = ["anisotropic_volumes", "ellipsoid_volumes", "stretched_gain", "STRETCHED_GAIN",
+           "GAIN_EXPONENT"]
+
+#: Amplitude factor of an ``sph`` kernel stretched to the clamp ``k_r`` (anisotropy 1),
+#: calibrated once (default kernel options and volumes) so that the flat top of an unjittered
+#: lattice pool lies on the true plane, half a spacing above the top layer
+#: (``benchmarks/results/surface_notes.md``). The flattened top-layer kernels of a flat surface
+#: overlap within their layer, so their volumes (:func:`filters.surface.volumes.
+#: anisotropic_volumes`) are small and the field half a spacing above the top layer is weak:
+#: with a single iso for all kernels it reached 0.367 there, against 0.6 for spherical ones.
+STRETCHED_GAIN = 1.635
+#: Exponent of the anisotropy in :func:`stretched_gain`.
+GAIN_EXPONENT = 1.0
+
+
+def stretched_gain(anisotropy):
+    """Amplitude factors ``1 + (STRETCHED_GAIN - 1) a^p`` (``p`` = :data:`GAIN_EXPONENT`) of
+    ``sph`` kernels of anisotropy ``a`` ((N,) in [0, 1], :func:`filters.surface.anisotropy.
+    kernel_matrices`): 1 for a sphere, continuous in ``a``.
+
+    Parameters
+    ----------
+    anisotropy : (N,) float64
+
+    Returns
+    -------
+    (N,) float64
+    """
+    a = np.clip(np.asarray(anisotropy, np.float64), 0.0, 1.0)
+    return 1.0 + (STRETCHED_GAIN - 1.0) * a ** GAIN_EXPONENT
 
 
 @njit(parallel=True, cache=True, fastmath=True)
@@ -122,11 +151,12 @@ def anisotropic_volumes(centres, G, masses=None, *, only=None):
     unsmoothed positions. Those are blind to how the flattened top-layer kernels overlap
     within their layer, and the surface then follows how densely each patch of the top layer
     is packed; these volumes give flatter SPH-settled pools and are smaller on a flat surface's
-    top layer, which is why the anisotropic field has its own iso
-    (:data:`filters.surface.ellipsoids.ANISOTROPIC_ISO`; measurements in
+    top layer, which is why the amplitudes of stretched kernels are raised
+    (:func:`stretched_gain`; measurements in
     ``benchmarks/results/surface_notes.md``). The splat computes these volumes for the
-    ellipsoids only (``only``); the spherical kernels inside the liquid keep their isotropic
-    SPH volumes, the same to sampling noise and cheaper.
+    anisotropic kernels only (``only``) and fades them in with the strength of the anisotropy;
+    the spherical kernels inside the liquid keep their isotropic SPH volumes, the same to
+    sampling noise and cheaper.
 
     Parameters
     ----------

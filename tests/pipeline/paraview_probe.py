@@ -23,4 +23,6 @@ for t in times:
                              "cells": info.GetNumberOfCells()})
 point_data = source.PointData
 result["point_arrays"] = sorted(point_data.GetArray(i).GetName() for i in range(len(point_data)))
+cell_data = source.CellData
+result["cell_arrays"] = sorted(cell_data.GetArray(i).GetName() for i in range(len(cell_data)))
 print("PROBE " + json.dumps(result))

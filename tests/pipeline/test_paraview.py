@@ -65,6 +65,22 @@ def test_paraview_reads_times_and_arrays(series, which):
 
 
 @needs_pvpython
+def test_paraview_reads_the_tetrahedra_and_the_embedded_mesh_of_a_fem_jello(tmp_path):
+    flow = load_scene("jello_fem").build(spacing=0.06, radius=0.12)
+    flow.source.set_frames(10, frames=3)
+    paths = flow.run(tmp_path, progress=False)
+    tets = _pvpython(HERE / "paraview_probe.py", paths["tets"])[0]
+    assert tets["reader"] == "PVDReader" and tets["times"] == [0.0, 0.1, 0.2]
+    n_tets = flow.source.simulation.model.mesh.tets.shape[0]
+    assert [f["cells"] for f in tets["frames"]] == [n_tets] * 3
+    assert "strain_energy_density" in tets["cell_arrays"]
+    assert {"velocity", "id"} <= set(tets["point_arrays"])
+    jello = _pvpython(HERE / "paraview_probe.py", paths["jello"])[0]
+    assert jello["times"] == [0.0, 0.1, 0.2]
+    assert {"velocity", "id"} <= set(jello["point_arrays"])
+
+
+@needs_pvpython
 @pytest.mark.parametrize("scene, settings", [
     ("hair", ["strands=4", "segments=5"]),
     ("cloth_drape", ["resolution=6"]),

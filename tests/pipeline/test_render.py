@@ -28,6 +28,7 @@ SMALL_SCENES = {
               "smooth_iterations": 5}, 3),
     "cloth_drape": ({"resolution": 8}, 3),
     "jello_drop": ({"spacing": 0.06}, 3),
+    "jello_fem": ({"spacing": 0.06}, 3),
     "hair": ({"strands": 12, "segments": 5}, 3),
     "noise_smoke": ({"rate": 600.0, "max_particles": 400}, 6),
 }
@@ -198,7 +199,8 @@ def scene_series(tmp_path_factory):
             parameters, frames = SMALL_SCENES[scene_name]
             flow = load_scene(scene_name).build(**parameters)
             flow.source.set_frames(flow.source.fps, frames=frames)
-            runs[scene_name] = flow.run(tmp_path_factory.mktemp(scene_name), progress=False)
+            paths = flow.run(tmp_path_factory.mktemp(scene_name), progress=False)
+            runs[scene_name] = {name: paths[name] for name in flow.drawn_outputs()}
         return runs[scene_name]
 
     return series

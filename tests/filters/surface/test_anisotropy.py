@@ -144,8 +144,9 @@ def test_flat_lattice_surface_lies_on_the_true_plane():
 
 def test_interior_particles_get_the_isotropic_kernel():
     """The covariance's dead zone (isotropy=0.12): inside a jittered lattice G is exactly I / h
-    and the centre the plain smoothed one; at the faces it is flattened; isotropy=0 gives
-    every particle an ellipsoid."""
+    and the centre the plain smoothed one; at the faces it is flattened, less near the edges,
+    and the curvature gate makes the corners (nearly) spherical; isotropy=0 gives every
+    particle an ellipsoid."""
     x, _ = _lattice((13, 13, 13), jitter=0.1, seed=2)
     centres, G = anisotropic_kernels(x, R)
     depth = np.minimum(x - x.min(axis=0), x.max(axis=0) - x).min(axis=1)
@@ -153,9 +154,14 @@ def test_interior_particles_get_the_isotropic_kernel():
     assert deep.sum() > 100
     assert np.all(G[deep] == np.eye(3) / H)
     lengths, _ = kernel_axes(G)
-    face = depth < 0.5 * S
-    flat = lengths[face, 2] / lengths[face, 0]
-    assert np.all(flat > 1.3) and np.median(flat) > 1.99  # k_r = 2 on faces, less at corners
+    flat = lengths[:, 2] / lengths[:, 0]
+    sides = np.sort(np.minimum(x - x.min(axis=0), x.max(axis=0) - x), axis=1)
+    face = (sides[:, 0] < 0.5 * S) & (sides[:, 1] > 1.5 * S)  # one face, away from its edges
+    # k_r = 2 on the faces; the jitter's apparent curvature fades some a little (measured:
+    # min 1.65, median 1.92)
+    assert np.all(flat[face] > 1.5) and np.median(flat[face]) > 1.85
+    corner = sides[:, 2] < 0.5 * S  # three faces: the surface curves, the kernel fades out
+    assert corner.sum() == 8 and np.median(flat[corner]) < 1.2
     _, G0 = anisotropic_kernels(x, R, isotropy=0.0)
     assert not np.any(np.all(G0[deep] == np.eye(3) / H, axis=(1, 2)))
     # continuity: just outside the dead zone the kernel is barely anisotropic
@@ -181,8 +187,11 @@ def test_sparse_and_dense_give_the_same_mesh():
     pa, ta = contour_sparse(sparse)
     pb, tb = contour_dense(dense)
     assert ta.shape == tb.shape
-    key = lambda p: p[np.lexsort(p.T[::-1])]  # noqa: E731
-    assert np.allclose(key(pa), key(pb), rtol=0, atol=1e-6)
+    # every vertex of one within 1e-6 m of one of the other (sorting the vertices and
+    # comparing row by row breaks where two coordinates differ by one float32 ulp)
+    from scipy.spatial import cKDTree
+
+    assert cKDTree(pb).query(pa)[0].max() < 1e-6 and cKDTree(pa).query(pb)[0].max() < 1e-6
 
 
 def test_bitwise_identical_for_one_and_two_threads():

@@ -1,0 +1,194 @@
+"""Benchmark: the FEM jello against the spring jello, marching tetrahedra against flying edges.
+
+Run (under the project's benchmark lock when the machine is free)::
+
+    flock /tmp/blobflow-bench.lock env OPENBLAS_NUM_THREADS=1 python benchmarks/bench_fem.py
+
+1. **Implicit jello steps**: an icosphere of radius 0.15 m (density 1000 kg/m^3) cut on a
+   lattice into about 10,000 and 100,000 tetrahedra (:func:`filters.elastic.tetmesh.
+   tets_from_mesh`), resting 5 mm above a floor with friction 0.5 and moving at 0.5 m/s
+   sideways and 1 m/s down, so that every step has contacts (the mesh's vertices against the
+   floor: IPC barrier, lagged friction, normal damping, :mod:`filters.elastic.contact_model`);
+   backward Euler (Newton, line search, the default solver) at ``h = 1/240`` s, the scene's
+   defaults (``jello_fem``: stable Neo-Hookean, E = 5e4 Pa, nu = 0.45, Rayleigh beta 0.002 s;
+   also the corotated material), against the spring jello (:class:`filters.elastic.
+   mass_spring.JelloSimulation`, stiffness 300 N, damping 0.5 N s/m)
+   on the *same lattice* (the same nodes: the spring lattice and the tetrahedra share the
+   voxelisation), steps interleaved between the models.  Reported per model: ms per step
+   (median, min), Newton and PCG iterations and direct solves per step.
+2. **Contouring**: the 100k and 1M jittered blocks of ``bench_surface.py`` splatted once
+   (``splat_sparse``, sph kernel, radius 0.01 m, cell 0.005 m, iso 0.6), then contoured with
+   flying edges (``contour_sparse``) and with marching tetrahedra (``contour_grid``),
+   alternating, best of ``--repeats``: seconds, triangles, vertices, closed and manifold
+   (``--no-1m`` skips the 1M block).
+
+Results go to ``benchmarks/results/fem.json`` with the Numba thread count and the load average
+before and after, because the development machine is shared: compare the ratios, measured
+side by side in one run, not the seconds.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+
+from filters.elastic.contact import Colliders  # noqa: E402
+from filters.elastic.fem_simulation import FEMSimulation  # noqa: E402
+from filters.elastic.mass_spring import JelloSimulation  # noqa: E402
+from filters.elastic.topology import icosphere  # noqa: E402
+from filters.geometry import Plane  # noqa: E402
+
+RESULTS = Path(__file__).parent / "results" / "fem.json"
+RADIUS = 0.15
+H = 1.0 / 240.0
+#: Lattice spacings giving about 10k and 100k tetrahedra in the ball.
+SPACINGS = {"10k": 0.0219, "100k": 0.0095}
+
+
+def _mesh():
+    p, t = icosphere(RADIUS, 3)
+    return p - [0.0, 0.0, p[:, 2].min() - 0.005], t
+
+
+def _floor():
+    return Colliders(friction=0.5).add(Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
+
+
+def _models(spacing):
+    p, t = _mesh()
+    models = {}
+    for material in ("neo_hookean", "corotated"):
+        models[f"fem_{material}"] = FEMSimulation.from_mesh(
+            p, t, spacing=spacing, material=material, youngs_modulus=5e4, poisson_ratio=0.45,
+            stiffness_damping=0.002, colliders=_floor(), max_dt=H)
+    models["springs"] = JelloSimulation(p, t, spacing=spacing, stretch_stiffness=300.0,
+                                        damping=0.5, colliders=_floor(), max_dt=H)
+    for sim in models.values():
+        sim.state.velocities[:] = [0.5, 0.0, -1.0]
+    return models
+
+
+def implicit(size, steps):
+    spacing = SPACINGS[size]
+    models = _models(spacing)
+    fem = models["fem_neo_hookean"]
+    rows = {name: dict(times=[], newton=[], pcg=[], direct=[]) for name in models}
+    for sim in models.values():  # compile and settle into contact
+        sim.step(H)
+    for _ in range(steps):
+        for name, sim in models.items():
+            start = time.perf_counter()
+            sim.step(H)
+            rows[name]["times"].append(time.perf_counter() - start)
+            info = sim.last_info
+            rows[name]["newton"].append(info.newton_iterations)
+            rows[name]["pcg"].append(info.linear_iterations)
+            rows[name]["direct"].append(info.direct_solves)
+    out = []
+    for name, r in rows.items():
+        sim = models[name]
+        row = dict(case=f"jello_{size}", model=name, spacing_m=spacing,
+                   nodes=int(sim.state.positions.shape[0]), steps=steps, h=H,
+                   ms_per_step_median=1e3 * float(np.median(r["times"])),
+                   ms_per_step_min=1e3 * float(np.min(r["times"])),
+                   newton_iterations_mean=float(np.mean(r["newton"])),
+                   pcg_iterations_mean=float(np.mean(r["pcg"])),
+                   direct_solves_mean=float(np.mean(r["direct"])))
+        if name.startswith("fem"):
+            row["tets"] = int(sim.system.n_tets)
+        else:
+            row["springs"] = int(sim.system.pairs.shape[0])
+        out.append(row)
+    base = next(r for r in out if r["model"] == "springs")["ms_per_step_median"]
+    for row in out:
+        row["time_vs_springs"] = row["ms_per_step_median"] / base
+    assert fem.state.positions.shape[0] == models["springs"].state.positions.shape[0]
+    return out
+
+
+def _block(n):
+    rng = np.random.default_rng(0)
+    g = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), -1)
+    g = g.reshape(-1, 3).astype(np.float64)
+    return np.ascontiguousarray(g * 0.02 + rng.uniform(-0.002, 0.002, g.shape))
+
+
+def contouring(case, repeats):
+    from filters.surface.mesh import mesh_stats
+    from filters.surface.splat import splat_sparse
+    from filters.surface.tetra import contour_grid
+    from pipeline.contour import contour_sparse
+
+    n = {"block_100k": (50, 50, 40), "block_1m": (100, 100, 100)}[case]
+    x = _block(n)
+    grid = splat_sparse(x, 0.01, 0.005, kernel="sph", iso=0.6)
+    tools = {"flying_edges": lambda: contour_sparse(grid),
+             "marching_tetrahedra": lambda: contour_grid(grid)}
+    times = {k: [] for k in tools}
+    meshes = {}
+    for _ in range(repeats):
+        for name, fn in tools.items():
+            start = time.perf_counter()
+            meshes[name] = fn()
+            times[name].append(time.perf_counter() - start)
+    rows = []
+    for name, (pts, tris) in meshes.items():
+        st = mesh_stats(pts, tris)
+        rows.append(dict(case=case, particles=int(x.shape[0]), method=name,
+                         seconds_best=min(times[name]), seconds_all=times[name],
+                         triangles=int(tris.shape[0]), vertices=int(pts.shape[0]),
+                         closed=st.closed, manifold=st.manifold, volume_m3=st.volume,
+                         area_m2=st.area))
+    fe = rows[0]
+    for row in rows:
+        row["time_vs_flying_edges"] = row["seconds_best"] / fe["seconds_best"]
+        row["triangles_vs_flying_edges"] = row["triangles"] / fe["triangles"]
+    return rows
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--steps", type=int, default=20, help="implicit steps per model")
+    parser.add_argument("--repeats", type=int, default=3, help="contouring repeats")
+    parser.add_argument("--no-1m", action="store_true", help="skip the 1M block")
+    parser.add_argument("--only", choices=("implicit", "contour"), help="one part only")
+    args = parser.parse_args(argv)
+    out = dict(machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
+                            numba_threads=numba.get_num_threads(),
+                            load_average_before=os.getloadavg()),
+               implicit=[], contouring=[])
+    if args.only in (None, "implicit"):
+        for size, steps in (("10k", args.steps), ("100k", max(3, args.steps // 4))):
+            for row in implicit(size, steps):
+                out["implicit"].append(row)
+                print(json.dumps(row), flush=True)
+    if args.only in (None, "contour"):
+        cases = ["block_100k"] if args.no_1m else ["block_100k", "block_1m"]
+        for case in cases:
+            for row in contouring(case, args.repeats):
+                out["contouring"].append(row)
+                print(json.dumps({k: v for k, v in row.items() if k != "seconds_all"}),
+                      flush=True)
+    out["machine"]["load_average_after"] = os.getloadavg()
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    if RESULTS.exists() and args.only:  # keep the other part of an earlier run
+        previous = json.loads(RESULTS.read_text())
+        other = "contouring" if args.only == "implicit" else "implicit"
+        out[other] = previous.get(other, [])
+    RESULTS.write_text(json.dumps(out, indent=1) + "\n")
+    print(f"wrote {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,115 @@
+"""The ``jello_fem`` scene: the finite-element jello drop, its tetrahedra and its embedded mesh."""
+
+import numpy as np
+import pytest
+
+from filters.elastic.tetmesh import tet_volumes
+from filters.elastic.topology import mesh_volume
+from pipeline.cli import main
+from pipeline.scene import load_scene
+from pipeline.series import read_series
+
+SMALL = {"spacing": 0.06, "radius": 0.12, "height": 0.1}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """The scene (small lattice), 0.8 s at 30 fps, written through the command line."""
+    out = tmp_path_factory.mktemp("jello_fem")
+    argv = ["run", "jello_fem", "--duration", "0.8", "--out", str(out), "--no-render", "-q"]
+    for key, value in SMALL.items():
+        argv += ["--set", f"{key}={value}"]
+    assert main(argv) == 0
+    return out
+
+
+def test_jello_falls_rests_on_the_floor_and_keeps_its_volume(run):
+    times, tets = read_series(run / "tets.pvd")
+    _, surfaces = read_series(run / "jello.pvd")
+    assert len(times) == len(surfaces) == 25
+    first = tets[0]
+    cells = first.cells_dict[10]  # VTK_TETRA
+    rest = tet_volumes(first.points, cells).sum()
+    triangles = surfaces[0].faces.reshape(-1, 4)[:, 1:]
+    rest_mesh = mesh_volume(surfaces[0].points, triangles)
+    for grid, surface in zip(tets, surfaces):
+        x = np.asarray(grid.points)
+        # the mesh's vertices touch the floor (a 1 mm barrier): never through it
+        assert np.asarray(surface.points)[:, 2].min() > 0.0
+        # nu = 0.45: the impact, stopped by inelastic contacts within a step, compresses the
+        # volume by up to ~1 % (2 % at the default 0.4 m drop); it comes back
+        assert tet_volumes(x, cells).sum() == pytest.approx(rest, rel=0.02)
+        assert mesh_volume(surface.points, triangles) == pytest.approx(rest_mesh, rel=0.02)
+        density = np.asarray(grid.cell_data["strain_energy_density"])
+        assert density.shape == (cells.shape[0],) and density.min() >= -1e-9
+    # it fell from 0.1 m and now rests on the floor
+    assert np.asarray(surfaces[0].points)[:, 2].min() == pytest.approx(0.1)
+    assert np.asarray(surfaces[-1].points)[:, 2].min() < 2e-3
+    # and, settling, keeps its volume within 1 %
+    for grid, surface in zip(tets[-3:], surfaces[-3:]):
+        assert tet_volumes(np.asarray(grid.points), cells).sum() == pytest.approx(rest, rel=0.01)
+        assert mesh_volume(surface.points, triangles) == pytest.approx(rest_mesh, rel=0.01)
+    assert np.asarray(tets[-1].cell_data["strain_energy_density"]).max() > 0.0
+
+
+def _mass():
+    return float(load_scene("jello_fem").build(**SMALL).source.simulation.system.masses.sum())
+
+
+def test_energy_account_in_the_frames_never_rises(run):
+    from filters.elastic.energy import ENERGY_FIELDS
+
+    _, tets = read_series(run / "tets.pvd")
+    totals = []
+    for grid in tets:
+        values = {name: float(np.asarray(grid.field_data[name]).ravel()[0])
+                  for name in ENERGY_FIELDS}
+        assert values["energy_total"] == pytest.approx(
+            sum(values[name] for name in ENERGY_FIELDS[:-1]))
+        totals.append(values["energy_total"])
+    # nothing does work on the jello: damping, friction and inelastic contacts only take, up
+    # to what backward Euler accepts per step (the kinetic energy of the whole mass at the
+    # Newton tolerance, 1 mm/s), 8 steps of 1/240 s per frame
+    mass = _mass()
+    assert np.all(np.diff(totals) <= 8 * mass * 1e-3**2)
+    assert totals[-1] < 0.9 * totals[0]
+
+
+def test_embedded_mesh_follows_the_tetrahedra(run):
+    flow = load_scene("jello_fem").build(**SMALL)
+    embedding = flow.source.simulation.model.mesh.embedding
+    _, tets = read_series(run / "tets.pvd")
+    _, surfaces = read_series(run / "jello.pvd")
+    for grid, surface in zip(tets[::8], surfaces[::8]):
+        np.testing.assert_allclose(surface.points, embedding.points(np.asarray(grid.points)),
+                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(surface.point_data["velocity"],
+                                   embedding.points(np.asarray(grid.point_data["velocity"])),
+                                   rtol=0, atol=1e-12)
+
+
+def test_a_resumed_run_writes_the_same_bytes(run, tmp_path):
+    out = tmp_path / "resumed"
+    argv = ["run", "jello_fem", "--out", str(out), "--no-render", "-q"]
+    for key, value in SMALL.items():
+        argv += ["--set", f"{key}={value}"]
+    assert main(argv + ["--duration", "0.3"]) == 0
+    assert main(argv + ["--duration", "0.8", "--resume"]) == 0
+    for name in ("tets/tets_000024.vtu", "jello/jello_000024.vtp", "tets/tets_000015.vtu"):
+        assert (out / name).read_bytes() == (run / name).read_bytes()
+
+
+def test_the_tetrahedra_are_not_drawn_the_mesh_is():
+    flow = load_scene("jello_fem").build(**SMALL)
+    assert flow.written_outputs() == ["tets", "jello"]
+    assert flow.drawn_outputs() == ["jello"]
+
+
+def test_bad_parameters_are_refused_before_anything_is_written(tmp_path, capsys):
+    for assignment in ("material=rubber", "poisson_ratio=0.5", "youngs_modulus=0",
+                       "damping=-1"):
+        code = main(["run", "jello_fem", "--set", assignment, "--frames", "2", "--out",
+                     str(tmp_path / "x"), "--no-render", "-q"])
+        assert code == 2
+        assert assignment.split("=")[0] in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
