@@ -97,7 +97,8 @@ def gallery_command(args, *, run, check_writable) -> int:
                 return code
         try:
             path, index, reason = gallery_still(directory, out / f"{name}.png",
-                                                time=scene.still)
+                                                time=scene.still,
+                                                outputs=scene.build().drawn_outputs())
         except RenderUnavailableError as exc:
             raise ValueError(str(exc)) from None
         print(f"{name}: wrote {path} (frame {index}, {reason})")

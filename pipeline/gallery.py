@@ -88,17 +88,24 @@ def run_is_current(directory, scene) -> bool:
     return True
 
 
-def run_series(directory) -> list[Path]:
-    """The series of a run folder, in the order its ``scene.json`` lists its outputs."""
+def run_series(directory, outputs=None) -> list[Path]:
+    """The series of a run folder, in the order its ``scene.json`` lists its outputs; only those
+    named in ``outputs`` (e.g. :meth:`pipeline.compose.Flow.drawn_outputs`) when given."""
     directory = Path(directory)
     record = json.loads((directory / "scene.json").read_text(encoding="utf-8"))
-    return [directory / f"{name}.pvd" for name in record.get("outputs", [])]
+    names = [n for n in record.get("outputs", []) if outputs is None or n in outputs]
+    return [directory / f"{name}.pvd" for name in names]
 
 
-def gallery_still(directory, out, *, size=GALLERY_SIZE,
-                  time: float | None = None) -> tuple[Path, int, str]:
+def gallery_still(directory, out, *, size=GALLERY_SIZE, time: float | None = None,
+                  outputs=None) -> tuple[Path, int, str]:
     """Draw the gallery's still of the run in ``directory`` to ``out`` (PNG): the frame nearest
     ``time`` (s; a scene's :attr:`~pipeline.scene.Scene.still`), else the most interesting one.
+
+    Only the outputs named in ``outputs`` are drawn (the scene's
+    :meth:`~pipeline.compose.Flow.drawn_outputs`; default every series of the run), so that a
+    series written for other tools (the tetrahedra around an embedded mesh) stays off the
+    picture.
 
     Returns
     -------
@@ -111,7 +118,7 @@ def gallery_still(directory, out, *, size=GALLERY_SIZE,
     """
     from .render import frame_at_time, interesting_frame, render_still
 
-    series = run_series(directory)
+    series = run_series(directory, outputs) or run_series(directory)
     if time is not None:
         index, reason = frame_at_time(series, time), f"the scene's still at t = {time:g} s"
     else:

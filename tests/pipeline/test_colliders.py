@@ -25,6 +25,7 @@ SCENE_RUNS = {
              "pool_depth": 0.04, "drop_radius": 0.03, "drop_height": 0.15, "surface": False},
     "hair": {"strands": 3, "segments": 2, "head_radius": 0.12},
     "jello_drop": {"spacing": 0.08, "radius": 0.1},
+    "jello_fem": {"spacing": 0.08, "radius": 0.1},
     "noise_smoke": {"rate": 100.0, "max_particles": 20, "ball_radius": 0.1, "ball_height": 0.5},
 }
 
@@ -45,7 +46,7 @@ def _expected(name, p):
                          [0, 0, 0, p["tank_length"], p["tank_width"], p["tank_height"]])}
     if name == "hair":  # the head the roots sit on
         return {"head": ("solid", "sphere", [0, 0, 1.5, p["head_radius"]])}
-    if name == "jello_drop":
+    if name in ("jello_drop", "jello_fem"):
         return {"floor": floor}
     if name == "noise_smoke":
         return {"floor": floor, "ball": ("solid", "sphere", [0, 0, p["ball_height"],

@@ -270,3 +270,23 @@ def test_readme_shows_the_gallery_image_of_every_scene():
     for name in available_scenes():
         assert (ROOT / "docs" / f"{name}.png").is_file(), f"run `blobflow gallery {name}`"
         assert f"docs/{name}.png" in table, f"show docs/{name}.png in the README's scene table"
+
+
+def test_gallery_draws_only_the_outputs_the_scene_draws(tmp_path):
+    """A series written for other tools (jello_fem's tetrahedra) stays off the gallery's still."""
+    run = tmp_path / "run"
+    run.mkdir()
+    _write(run / "tets.pvd", [pv.Sphere(radius=0.4, center=(0.8, 0.0, 0.5))] * 3)
+    _write(run / "jello.pvd", [pv.Sphere(radius=0.15, center=(0.0, 0.0, 0.15))] * 3)
+    (run / "scene.json").write_text(json.dumps({"scene": "x", "outputs": ["tets", "jello"]}))
+    assert run_series(run) == [run / "tets.pvd", run / "jello.pvd"]
+    assert run_series(run, ["jello"]) == [run / "jello.pvd"]
+    path, index, _ = gallery_still(run, tmp_path / "still.png", size=SIZE, time=0.1,
+                                   outputs=["jello"])
+    assert index == 1
+    image = imageio.imread(path)
+    with Renderer(run / "jello.pvd", size=SIZE, frames=[1]) as renderer:
+        np.testing.assert_array_equal(image, renderer.render(1, 0.0))
+    with Renderer(run_series(run), size=SIZE, frames=[1]) as renderer:
+        assert np.abs(renderer.render(1, 0.0).astype(int) - image.astype(int)).max() > 50
+
