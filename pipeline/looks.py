@@ -32,6 +32,12 @@ GLASS = "#d6e6f2"           # container faces
 EDGE = "#2e3640"            # container edges
 FLOOR = "#eef0f2"
 BACKGROUND = ("#f4f6f9", "#c9d3de")  # top, bottom gradient
+
+#: Dihedral angle (degrees) above which the drawn copy of a liquid surface gets split normals:
+#: the flat faces where a surface is cut at its tank's walls meet the free surface at about
+#: 90 degrees, and normals averaged across those edges shade the long cap triangles in diagonal
+#: streaks; the curved free surface (dihedral angles well under this) stays smooth.
+WATER_FEATURE_ANGLE = 60.0
 #: Direction of the key light from the scene's centre, relative to the camera: azimuth
 #: (degrees, negative to the camera's left as it looks at the scene) and elevation (degrees).
 KEY_AZIMUTH = -60.0

@@ -379,15 +379,21 @@ class Renderer:
                 surface = vtkDataSetSurfaceFilter()
                 surface.SetInputData(source)
                 source = surface
-            if layer.kind == "solid" or "Normals" not in data.point_data:
-                normals = vtkPolyDataNormals()
+            # Water is drawn with normals split at sharp edges (its walls' cuts, see
+            # looks.WATER_FEATURE_ANGLE), on this drawn copy only: the written surface stays
+            # closed, with its own normals.
+            normals = vtkPolyDataNormals()
+            if layer.kind == "water":
+                normals.SplittingOn()
+                normals.SetFeatureAngle(looks.WATER_FEATURE_ANGLE)
+            else:
                 normals.SplittingOff()
-                normals.ConsistencyOn()
-                if isinstance(source, pv.DataSet):
-                    normals.SetInputData(source)
-                else:
-                    normals.SetInputConnection(source.GetOutputPort())
-                source = normals
+            normals.ConsistencyOn()
+            if isinstance(source, pv.DataSet):
+                normals.SetInputData(source)
+            else:
+                normals.SetInputConnection(source.GetOutputPort())
+            source = normals
         if layer.kind == "water":
             kwargs = kwargs or {"color": looks.WATER}
             # Opaque on purpose: with slight transparency, depth peeling under supersampling

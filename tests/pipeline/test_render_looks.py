@@ -290,3 +290,23 @@ def test_gallery_draws_only_the_outputs_the_scene_draws(tmp_path):
     with Renderer(run_series(run), size=SIZE, frames=[1]) as renderer:
         assert np.abs(renderer.render(1, 0.0).astype(int) - image.astype(int)).max() > 50
 
+
+def test_flat_faces_of_a_liquid_surface_are_shaded_flat(tmp_path):
+    """A closed surface with its normals averaged across sharp edges (a pool cut flat at its
+    tank's walls) is drawn with split normals: each flat face evenly lit, no diagonal streaks
+    over its long triangles; the written surface is left as it is."""
+    box = pv.Box(bounds=(0, 0.4, 0, 0.2, 0, 0.3), level=0, quads=False).triangulate().clean()
+    box = box.compute_normals(cell_normals=False, split_vertices=False, consistent_normals=True,
+                              auto_orient_normals=True)
+    path = _write(tmp_path / "surface.pvd", [box, box])
+    written = {f: f.read_bytes() for f in sorted(tmp_path.rglob("*")) if f.is_file()}
+    with Renderer(path, size=SIZE, frames=[0]) as renderer:
+        image = renderer.render(0, 0.0)
+        u, v = (g.ravel() for g in np.meshgrid(np.linspace(0.1, 0.9, 9), np.linspace(0.1, 0.9, 9)))
+        faces = {"front": np.c_[0.4 * u, 0 * u, 0.3 * v],
+                 "top": np.c_[0.4 * u, 0.2 * v, 0.3 + 0 * u],
+                 "side": np.c_[0.4 + 0 * u, 0.2 * u, 0.3 * v]}
+        for name, points in faces.items():
+            lum = _sample(image, renderer.pixels_of(points))
+            assert np.ptp(lum) < 10, (name, np.ptp(lum))  # averaged normals: 55 to 127
+    assert {f: f.read_bytes() for f in sorted(tmp_path.rglob("*")) if f.is_file()} == written
