@@ -144,32 +144,61 @@ def clip_half_space(points, triangles, axis: int, value: float, keep: int, *, da
 
 @njit(cache=True)
 def _chain(edges, n):
-    """Loops of directed edges (every vertex with one edge out and one in): (order, starts)."""
-    nxt = np.full(n, -1, np.int64)
-    for k in range(edges.shape[0]):
-        if nxt[edges[k, 0]] >= 0:
-            return np.zeros(0, np.int64), np.zeros(1, np.int64)
-        nxt[edges[k, 0]] = edges[k, 1]
-    seen = np.zeros(n, np.bool_)
-    order = np.empty(edges.shape[0], np.int64)
-    starts = np.empty(edges.shape[0] + 1, np.int64)
-    m = 0
+    """Simple loops of directed edges with as many edges in as out at every vertex: (order,
+    starts).  A vertex where loops touch (a pinch: two edges out) is split, each loop closed as
+    soon as the walk comes back to a vertex on it; an open chain gives a shorter ``order``."""
+    m = edges.shape[0]
+    first = np.zeros(n + 1, np.int64)  # out-edges of each vertex, in the edges' order
+    for k in range(m):
+        first[edges[k, 0] + 1] += 1
+    for v in range(n):
+        first[v + 1] += first[v]
+    out = np.empty(m, np.int64)
+    cursor = first[:n].copy()
+    for k in range(m):
+        out[cursor[edges[k, 0]]] = k
+        cursor[edges[k, 0]] += 1
+    cursor = first[:n].copy()  # the next unused out-edge of each vertex
+    on_path = np.full(n, -1, np.int64)
+    path = np.empty(m + 1, np.int64)
+    order = np.empty(m, np.int64)
+    starts = np.empty(m + 1, np.int64)
+    count = 0
     loops = 0
-    for k in range(edges.shape[0]):
-        v = edges[k, 0]
-        if seen[v]:
+    for k0 in range(m):
+        start = edges[k0, 0]
+        if cursor[start] >= first[start + 1]:
             continue
-        starts[loops] = m
-        loops += 1
-        while not seen[v]:
-            if v < 0:
-                return np.zeros(0, np.int64), np.zeros(1, np.int64)
-            seen[v] = True
-            order[m] = v
-            m += 1
-            v = nxt[v]
-    starts[loops] = m
-    return order[:m].copy(), starts[:loops + 1].copy()
+        path[0] = start
+        on_path[start] = 0
+        length = 1
+        while length > 0:
+            v = path[length - 1]
+            if cursor[v] >= first[v + 1]:
+                if length > 1:  # stuck away from the start: an open chain
+                    starts[loops] = count
+                    return order[:count].copy(), starts[:loops + 1].copy()
+                on_path[v] = -1
+                length = 0
+                break
+            w = edges[out[cursor[v]], 1]
+            cursor[v] += 1
+            if on_path[w] < 0:
+                on_path[w] = length
+                path[length] = w
+                length += 1
+                continue
+            # back on the path: the loop from w to v
+            starts[loops] = count
+            loops += 1
+            for i in range(on_path[w], length):
+                order[count] = path[i]
+                count += 1
+                if i > on_path[w]:
+                    on_path[path[i]] = -1
+            length = on_path[w] + 1
+    starts[loops] = count
+    return order[:count].copy(), starts[:loops + 1].copy()
 
 
 def cap_loops(points, edges, axis: int, lower, upper):
@@ -188,12 +217,13 @@ def cap_loops(points, edges, axis: int, lower, upper):
     Raises
     ------
     ValueError
-        If the edges do not form simple loops (a vertex with two edges out).
+        If the edges do not form closed loops (an open chain).  Loops that touch at a vertex
+        (a pinch, where the surface meets the wall at one point) are split there.
     """
     edges = np.ascontiguousarray(edges, dtype=np.int64)
     order, starts = _chain(edges, int(points.shape[0]))
     if order.size != edges.shape[0]:
-        raise ValueError("the cut's edges do not form simple loops")
+        raise ValueError("the cut's edges do not form closed loops")
     lower = np.asarray(lower, np.float64)
     upper = np.asarray(upper, np.float64)
     others = [a for a in range(3) if a != axis]
