@@ -47,7 +47,7 @@ RUNS = [
     ("jello_fem_corotated", ["run", "jello_fem", "--frames", "3", "--set", "spacing=0.06",
                              "--set", "material=corotated"]),
     ("noise_smoke", ["run", "noise_smoke", "--frames", "4", "--set", "rate=3000",
-                     "--set", "max_particles=300"]),
+                     "--set", "max_particles=300", "--set", "surface=true"]),
     ("noise_smoke_euler", ["run", "noise_smoke", "--frames", "3", "--set", "rate=3000",
                            "--set", "max_particles=300", "--set", "integrator=euler",
                            "--set", "surface=false"]),

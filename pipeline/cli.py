@@ -79,9 +79,14 @@ def _build_parser() -> argparse.ArgumentParser:
     p_render = sub.add_parser("render", help="render series offscreen: a time-lapse or a turntable")
     p_render.add_argument("series", nargs="+", help=".pvd or .series files drawn together")
     p_render.add_argument("--turntable", type=int, metavar="N",
-                          help="orbit N frames around one time step instead of a time-lapse")
-    p_render.add_argument("--time-index", type=int, default=-1, metavar="I",
-                          help="time step of the turntable (default the last)")
+                          help="orbit N distinct views around one time step (a seamless loop) "
+                               "instead of a time-lapse")
+    when = p_render.add_mutually_exclusive_group()
+    when.add_argument("--time", type=float, metavar="S",
+                      help="time (s) of the turntable: the nearest frame (default the most "
+                           "interesting frame: largest liquid surface or kinetic energy)")
+    when.add_argument("--time-index", type=int, metavar="I",
+                      help="frame index of the turntable instead of --time")
     p_render.add_argument("--orbit", type=float, default=0.0, metavar="DEG",
                           help="degrees the camera orbits during a time-lapse")
     p_render.add_argument("--out", metavar="FILE.gif|FILE.mp4|DIR",
@@ -115,6 +120,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
+
+    cli_tools.add_gallery_parser(sub)
     cli_tools.add_export_parser(sub)
     cli_tools.add_paraview_parser(sub)
     return parser
@@ -319,8 +326,9 @@ def _scene_record(scene, parameters, fps, outputs) -> dict:
     return {"scene": scene.name, "fps": fps, "parameters": parameters, "outputs": outputs}
 
 
-#: What ``blobflow run`` writes beside the series (renders), removed with a previous run.
-_RUN_FILES = ("turntable.gif", "movie.mp4")
+#: What ``blobflow run`` writes beside the series (renders, colliders), removed with a previous
+#: run.
+_RUN_FILES = ("turntable.gif", "movie.mp4", "colliders.vtp")
 
 
 def _read_record(out: Path) -> dict | None:
@@ -445,7 +453,8 @@ def _cmd_run(args) -> int:
 
         try:
             drawn = [paths[name] for name in flow.drawn_outputs()] or list(paths.values())
-            paths.update(render_run(drawn, out, progress=not args.quiet))
+            paths.update(render_run(drawn, out, time=scene.still,
+                                    progress=not args.quiet))
         except RenderUnavailableError as exc:
             # the series are the run's result; pictures need a system library
             print(f"blobflow: rendering skipped: {exc}", file=sys.stderr)
@@ -469,6 +478,16 @@ def _cmd_render(args) -> int:
         raise UsageError(str(exc)) from None
     if args.turntable is not None and args.turntable < 2:
         raise UsageError(f"--turntable must be >= 2 frames, got {args.turntable}")
+    if args.turntable is None and (args.time is not None or args.time_index is not None):
+        raise UsageError("--time and --time-index choose the turntable's time step: give "
+                         "--turntable N too")
+    if args.time is not None:
+        from .render import frame_at_time
+
+        try:
+            frame_at_time(paths, args.time)
+        except ValueError as exc:
+            raise UsageError(f"--{exc}") from None
     if args.fps is not None and not args.fps > 0:
         raise UsageError(f"--fps must be > 0, got {args.fps}")
     stem = paths[0].name.split(".")[0]
@@ -483,12 +502,13 @@ def _cmd_render(args) -> int:
             from .render import render_frames
 
             result = render_frames(paths, out, client=client, turntable_frames=args.turntable,
-                                   time_index=args.time_index, orbit=args.orbit, size=size,
+                                   time_index=args.time_index, time=args.time,
+                                   orbit=args.orbit, size=size,
                                    color_by=args.color_by, fps=args.fps, progress=not args.quiet)
         elif args.turntable:
             result = turntable(paths, out, frames=args.turntable, time_index=args.time_index,
-                               size=size, color_by=args.color_by, fps=args.fps or 24.0,
-                               progress=not args.quiet)
+                               time=args.time, size=size, color_by=args.color_by,
+                               fps=args.fps or 24.0, progress=not args.quiet)
         else:
             result = timelapse(paths, out, orbit=args.orbit, size=size, color_by=args.color_by,
                                fps=args.fps, progress=not args.quiet)
@@ -557,6 +577,8 @@ def main(argv=None) -> int:
             cli_tools.announce_compilation()
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
                    "surface": _cmd_surface, "info": _cmd_info,
+                   "gallery": _usage_errors(lambda a: cli_tools.gallery_command(
+                       a, run=main, check_writable=_check_writable)),
                    "export": _usage_errors(cli_tools.export_command),
                    "paraview": _usage_errors(cli_tools.paraview_command)}[args.command]
         return command(args)

@@ -1,4 +1,4 @@
-"""Parts of the ``blobflow`` command line (:mod:`pipeline.cli`): the ``export`` and
+"""Parts of the ``blobflow`` command line (:mod:`pipeline.cli`): the ``gallery``, ``export`` and
 ``paraview`` commands, help texts completed when printed (scene defaults, kernels), and the
 notice printed while Numba compiles.
 
@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["add_export_parser", "export_command", "add_paraview_parser", "paraview_command",
+__all__ = ["add_gallery_parser", "gallery_command", "add_export_parser", "export_command", "add_paraview_parser", "paraview_command",
            "scene_defaults_epilog", "surface_help", "announce_compilation"]
 
 
@@ -49,6 +49,60 @@ def surface_help(parser) -> None:
     parser.epilog = ("further options (--option NAME=VALUE) and their defaults: "
                      + ", ".join(f"{k}={v}" for k, v in SURFACE_DEFAULTS.items()
                                  if k not in ("radius", "kernel", "smooth_iterations")))
+
+
+# -- gallery ------------------------------------------------------------------------------------
+def add_gallery_parser(sub) -> None:
+    p = sub.add_parser("gallery", help="run every scene with its defaults and draw one still of "
+                       "each (the README's pictures)",
+                       description="Draw one still per scene (at the scene's still time, else "
+                       "its most interesting frame; 640x480, with its colliders) from a run of the scene's defaults: a "
+                       "complete run of exactly the defaults in RUNS/SCENE or in outputs/SCENE "
+                       "(where `blobflow run SCENE` writes) is reused, else the scene is run "
+                       "into RUNS/SCENE with --no-render.")
+    p.add_argument("scenes", nargs="*", metavar="SCENE", help="scenes to draw (default all)")
+    p.add_argument("--out", default="docs", metavar="DIR", help="folder of the stills SCENE.png")
+    p.add_argument("--runs", default=str(Path("outputs") / "gallery"), metavar="DIR",
+                   help="folder of the scenes' runs, reused when complete with the defaults")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def gallery_command(args, *, run, check_writable) -> int:
+    """``blobflow gallery``: ``run(argv)`` runs a scene (``blobflow run``), ``check_writable``
+    refuses a folder that cannot be written."""
+    from .gallery import gallery_still, run_is_current
+    from .render import RenderUnavailableError
+    from .scene import available_scenes, load_scene
+
+    installed = list(available_scenes())
+    names = args.scenes or installed
+    unknown = [n for n in names if n not in installed]
+    if unknown:
+        raise ValueError(f"unknown scene {unknown[0]!r}; scenes: {', '.join(installed)}")
+    out, runs = Path(args.out), Path(args.runs)
+    check_writable(out)
+    check_writable(runs)
+    quiet = ["-q"] if args.quiet else []
+    for name in names:
+        scene = load_scene(name)
+        candidates = [runs / name, Path("outputs") / name]
+        directory = next((d for d in candidates if run_is_current(d, scene)), None)
+        if directory is not None:
+            print(f"{name}: reusing the run in {directory}")
+        else:
+            directory = runs / name
+            code = run(["run", name, "--out", str(directory), "--no-render", *quiet])
+            if code != 0:
+                print(f"blobflow: gallery stopped: the run of {name!r} failed", file=sys.stderr)
+                return code
+        try:
+            path, index, reason = gallery_still(directory, out / f"{name}.png",
+                                                time=scene.still,
+                                                outputs=scene.build().drawn_outputs())
+        except RenderUnavailableError as exc:
+            raise ValueError(str(exc)) from None
+        print(f"{name}: wrote {path} (frame {index}, {reason})")
+    return 0
 
 
 # -- export -------------------------------------------------------------------------------------

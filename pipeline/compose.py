@@ -11,6 +11,7 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 from filters.validation import check_bool
 
 from .algorithm import connect_chain, update
+from .colliders import COLLIDERS_FILE, Collider, write_colliders
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, read_frame
 from .xdmf import export_xdmf
@@ -59,6 +60,7 @@ class Flow:
     --------
     >>> flow = Flow(SimulationSource(sim, fps=30, duration=2.0))          # doctest: +SKIP
     >>> flow.add("surface", MetaballSplat(), MarchingCubes())             # doctest: +SKIP
+    >>> flow.add_collider("floor", Plane((0, 0, 0), (0, 0, 1)), role="floor")  # doctest: +SKIP
     >>> flow.run("outputs/demo")                                          # doctest: +SKIP
     """
 
@@ -71,6 +73,7 @@ class Flow:
         self.stages[_check_name(name)] = Stage(name, source, [source], check_bool("write", write),
                                                check_bool("xdmf", xdmf), check_bool("draw", draw))
         self._primary = name
+        self.colliders: list[Collider] = []
 
     @property
     def times(self):
@@ -121,6 +124,35 @@ class Flow:
         chain = self.stages[input].chain + list(algorithms)
         self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf, draw)
         return algorithms[-1]
+
+    def add_collider(self, name: str, shape, role: str = "solid", *, size: float = 2.0) -> Collider:
+        """Declare a floor, container or solid collider of the scene, written as ``colliders.vtp``.
+
+        :meth:`run` writes every declared collider beside the series
+        (:mod:`pipeline.colliders`); the renderer draws them.  Declare the shapes the simulation
+        uses, so that what is drawn is what the bodies touch.
+
+        Parameters
+        ----------
+        name : str
+            Unique identifier (``"tank"``, ``"floor"``, ``"ball"``).
+        shape : filters.geometry.Shape
+            Its solid: a Plane for a floor, ``~Box(lower, upper)`` for a tank, a Sphere...
+        role : {"floor", "container", "solid"}
+            How it is drawn.
+        size : float
+            Side of the square drawn for a plane (m).
+
+        Returns
+        -------
+        pipeline.colliders.Collider
+        """
+        collider = Collider(name, shape, role, size)
+        if any(c.name == collider.name for c in self.colliders):
+            raise ValueError(f"a collider named {name!r} exists already; names: "
+                             f"{[c.name for c in self.colliders]}")
+        self.colliders.append(collider)
+        return collider
 
     def output(self, name: str, time: float):
         """Output ``name`` at ``time`` (s) as a PyVista dataset.
@@ -239,13 +271,16 @@ class Flow:
         Returns
         -------
         dict of str to Path
-            The collection file of every written output.
+            The collection file of every written output (the colliders, when the flow declares
+            any, are in ``directory/colliders.vtp``).
         """
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         written = [s for s in self.stages.values() if s.write]
         if not written:
             raise ValueError("no output is marked to be written")
+        if self.colliders:
+            write_colliders(self.colliders, directory / COLLIDERS_FILE)
         writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}
         start = self._resume_point(writers) if resume else 0
         if start == 0:

@@ -59,15 +59,25 @@ class Scene:
         Default frames per second.
     duration : float
         Default simulated seconds.
+    still : float, optional
+        Time (s) of the moment that shows the scene best at its defaults (a cloth draped, a
+        jello at rest), drawn by ``blobflow gallery`` and the turntable of ``blobflow run``;
+        within ``[0, duration]``.  Default: the most interesting frame
+        (:func:`pipeline.render.interesting_frame`: the largest liquid surface, else the
+        largest kinetic energy).
     """
 
     def __init__(self, name: str, build, description: str, *, fps: float = 30.0,
-                 duration: float = 2.0):
+                 duration: float = 2.0, still: float | None = None):
         self.name = name
         self.build_function = build
         self.description = description
         self.fps = float(fps)
         self.duration = float(duration)
+        if still is not None and not 0.0 <= still <= self.duration:
+            raise ValueError(f"scene {name!r}: still must be a time in [0, {self.duration:g}] s, "
+                             f"got {still!r}")
+        self.still = None if still is None else float(still)
         docs = _parameter_docs(build)
         self.parameters: dict[str, Parameter] = {}
         for p in inspect.signature(build).parameters.values():

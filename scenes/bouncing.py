@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters import BallisticParticles
+from filters.geometry import Plane
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
@@ -43,7 +44,10 @@ def build(*, count: int = 8, spacing: float = 0.1, height: float = 1.0, speed: f
     velocities[:, 0] += speed
     velocities[:, 2] = np.abs(velocities[:, 2])
     simulation = BallisticParticles(positions, velocities, restitution=restitution)
-    return Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    floor = simulation.model.floor
+    flow.add_collider("floor", Plane((0.0, 0.0, floor), (0.0, 0.0, 1.0)), role="floor", size=4.0)
+    return flow
 
 
 SCENE_FPS = 30.0

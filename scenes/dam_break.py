@@ -9,6 +9,7 @@ wall, climbs it and falls back as a plunging wave.  The particle series carries 
 
 from __future__ import annotations
 
+from filters.geometry import Box
 from filters.sph.scenarios import dam_break_liquid
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
@@ -84,9 +85,10 @@ def build(*, column_width: float = 0.1, column_height: float = 0.2, tank_length:
         **solver_options(solver, max_density_error, max_iterations, speed_of_sound),
         cfl=cfl, max_dt=max_dt)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    tank = Box((0.0, 0.0, 0.0), (tank_length, depth, tank_height))  # the tank's inner box
+    flow.add_collider("tank", ~tank, role="container")
     if surface:
-        add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
-                           tank_hi=(tank_length, depth, tank_height),
+        add_liquid_surface(flow, spacing=spacing, tank_lo=tank.lower, tank_hi=tank.upper,
                            smooth_iterations=smooth_iterations,
                            feature_smoothing=feature_smoothing, anisotropic=anisotropic)
     return flow

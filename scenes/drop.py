@@ -7,6 +7,7 @@ The particle series carries ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure
 
 from __future__ import annotations
 
+from filters.geometry import Box
 from filters.sph.scenarios import drop_liquid
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene
@@ -85,9 +86,10 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         **solver_options(solver, max_density_error, max_iterations, speed_of_sound),
         cfl=cfl, max_dt=max_dt)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
+    tank = Box((0.0, 0.0, 0.0), (tank_length, tank_width, tank_height))  # the tank's inner box
+    flow.add_collider("tank", ~tank, role="container")
     if surface:
-        add_liquid_surface(flow, spacing=spacing, tank_lo=(0.0, 0.0, 0.0),
-                           tank_hi=(tank_length, tank_width, tank_height),
+        add_liquid_surface(flow, spacing=spacing, tank_lo=tank.lower, tank_hi=tank.upper,
                            smooth_iterations=smooth_iterations,
                            feature_smoothing=feature_smoothing, anisotropic=anisotropic)
     return flow

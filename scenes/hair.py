@@ -82,16 +82,20 @@ def build(*, strands: int = 200, segments: int = 16, length: float = 0.3,
     center = np.array([0.0, 0.0, 1.5])
     roots = center + head_radius * normal
     # strands are kept 2 mm off the scalp (the barrier's reach): no segment enters the head
-    head = Colliders(friction=friction, thickness=0.002).add(Sphere(center, head_radius))
+    head = Sphere(center, head_radius)
+    colliders = Colliders(friction=friction, thickness=0.002).add(head)
     segment_mass = linear_density * length / segments
     sim = HairSimulation(roots, grow, segments=segments, length=length,
                          linear_density=linear_density, clamped=True,
                          stretch_stiffness=stiffness, bend_stiffness=bend, damping=damping,
                          bend_damping=bend_damping, drag=air_drag * segment_mass,
-                         colliders=head, max_dt=max_dt, newton_tol=1e-2, cells="segments")
-    return Flow(SimulationSource(sim, fps=SCENE_FPS, duration=SCENE_DURATION), name="hair",
+                         colliders=colliders, max_dt=max_dt, newton_tol=1e-2, cells="segments")
+    flow = Flow(SimulationSource(sim, fps=SCENE_FPS, duration=SCENE_DURATION), name="hair",
                 xdmf=True)
+    flow.add_collider("head", head)
+    return flow
 
 
+# its still: the hair at rest, draped over the head
 SCENE = Scene("hair", build, "hair strands rooted on a head, draping and coming to rest",
-              fps=SCENE_FPS, duration=SCENE_DURATION)
+              fps=SCENE_FPS, duration=SCENE_DURATION, still=SCENE_DURATION)

@@ -3,7 +3,8 @@
 Smoke-like particles are emitted in a thin box on the floor, carried up by a uniform rising flow
 plus divergence-free curl noise (Bridson, Hourihan & Nordenstam 2007) whose potential is ramped
 near a ball so that the flow, rising wind included, goes around it.  Written as points
-(``particles.pvd``: velocity, id, age, size, color) and as a metaball surface
+(``particles.pvd``: velocity, id, age, size, color), which the renderer draws as soft
+translucent sprites fading with age; ``surface=true`` also writes a metaball surface
 (``surface.pvd``) splatted with each particle's own radius (``size``, from noise).
 """
 
@@ -23,7 +24,7 @@ SCENE_DURATION = 3.0
 def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
           amplitude: float = 0.4, frequency: float = 2.5, octaves: int = 2,
           time_scale: float = 0.5, ball_radius: float = 0.15, ball_height: float = 0.6,
-          radius: float = 0.02, surface: bool = True, integrator: str = "rk4",
+          radius: float = 0.02, surface: bool = False, integrator: str = "rk4",
           max_particles: int = 20000, seed: int = 0) -> Flow:
     """Build the noise-smoke flow.
 
@@ -51,7 +52,8 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
         Largest particle radius for the metaball surface (m), > 0; particles get 0.5 to 1 times
         this from noise.
     surface : bool
-        Also write the metaball surface (``surface.pvd``).
+        Also write a metaball surface of the particles (``surface.pvd``; smoke is drawn from
+        the particles, not from this surface).
     integrator : str
         One of euler, rk2, rk4, linearized_backward_euler.
     max_particles : int
@@ -78,6 +80,9 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
         size_range=(0.5 * radius, radius), variation_frequency=3.0, seed=seed)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION),
                 name="particles")
+    flow.add_collider("floor", floor, role="floor")
+    for obstacle in obstacles:
+        flow.add_collider("ball", obstacle)
     if surface:
         from pipeline.surface import surface_stages
 
@@ -93,5 +98,5 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
 
 
 SCENE = Scene("noise_smoke", build,
-              "particles rising through curl noise around a ball, as points and a metaball "
-              "surface", fps=SCENE_FPS, duration=SCENE_DURATION)
+              "particles rising through curl noise around a ball, drawn as smoke",
+              fps=SCENE_FPS, duration=SCENE_DURATION)

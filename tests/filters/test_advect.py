@@ -211,7 +211,7 @@ def test_noise_smoke_scene_writes_points_and_surface(tmp_path):
     from scenes.noise_smoke import SCENE
 
     assert all(p.doc for p in SCENE.parameters.values())  # every parameter documented
-    flow = SCENE.build(rate=600.0, radius=0.03, seed=2)
+    flow = SCENE.build(rate=600.0, radius=0.03, seed=2, surface=True)
     flow.source.set_frames(10.0, frames=4)
     flow.run(tmp_path, progress=False)
     times, particles = read_series(tmp_path / "particles.pvd")

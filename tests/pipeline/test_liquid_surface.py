@@ -130,3 +130,20 @@ def test_pool_translated_by_a_fraction_of_a_voxel_gives_the_translated_surface()
     d = _distances(b[0] - shift, a)
     assert np.sqrt(np.mean(d ** 2)) < 0.01 * S
     assert mesh_stats(*b).volume == pytest.approx(mesh_stats(*a).volume, rel=1e-3)
+
+
+def test_cap_loops_that_touch_at_a_vertex_are_split_there():
+    """Where a surface meets a wall at a single point (a pinch: two cut edges out of one
+    vertex) the cap's boundary splits into simple loops there; an open chain is refused."""
+    from filters.surface.clip import cap_loops
+
+    points = np.array([[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, -1, 0], [0, -1, -1]], float)
+    bowtie = np.array([[0, 1], [1, 2], [2, 0], [0, 3], [3, 4], [4, 0]])
+    loops, runs = cap_loops(points, bowtie, 0, (-5, -5, -5), (5, 5, 5))
+    assert [list(loop) for loop in loops] == [[0, 1, 2], [0, 3, 4]] and not runs
+    # the pinch met in the middle of a walk
+    middle = np.array([[0, 1], [1, 2], [2, 3], [3, 1], [1, 4], [4, 0]])
+    loops, _ = cap_loops(np.zeros((5, 3)), middle, 0, (-5, -5, -5), (5, 5, 5))
+    assert sorted(sorted(loop) for loop in map(list, loops)) == [[0, 1, 4], [1, 2, 3]]
+    with pytest.raises(ValueError, match="closed loops"):
+        cap_loops(points, np.array([[0, 1], [1, 2]]), 0, (-5, -5, -5), (5, 5, 5))

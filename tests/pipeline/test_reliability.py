@@ -397,8 +397,8 @@ def test_10_folder_of_another_scene_is_refused_and_reruns_leave_nothing_stale(tm
     notes.write_text("mine")
     _bouncing(tmp_path, capsys)
     left = sorted(p.name for p in out.iterdir())
-    assert left == ["my_notes.txt", "particles", "particles.pvd", "particles.vtp.series",
-                    "scene.json"]
+    assert left == ["colliders.vtp", "my_notes.txt", "particles", "particles.pvd",
+                    "particles.vtp.series", "scene.json"]  # colliders.vtp: the new run's floor
 
 
 # -- property test: bad --set values for every parameter of every scene ----------------------------

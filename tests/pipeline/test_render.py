@@ -1,6 +1,7 @@
 """Offscreen rendering with no DISPLAY: movies, turntables, invariants and cached images."""
 
 import os
+from pathlib import Path
 
 import imageio.v2 as imageio
 import numpy as np
@@ -29,7 +30,7 @@ SMALL_SCENES = {
     "jello_drop": ({"spacing": 0.06}, 3),
     "jello_fem": ({"spacing": 0.06}, 3),
     "hair": ({"strands": 12, "segments": 5}, 3),
-    "noise_smoke": ({"rate": 600.0, "max_particles": 400}, 3),
+    "noise_smoke": ({"rate": 600.0, "max_particles": 400}, 6),
 }
 
 
@@ -71,13 +72,22 @@ def test_image_is_not_blank_and_particles_are_blue(series, tmp_path):
     assert b > r + 20, f"particles are not blue-ish: mean RGB {r:.0f} {g:.0f} {b:.0f}"
 
 
-def test_turntable_frames_differ_and_loop(series, tmp_path):
-    out = turntable(series, tmp_path / "tt.gif", frames=6, size=SIZE, progress=False)
-    frames = imageio.mimread(out)
-    assert len(frames) == 6 and frames[0].shape[:2] == (SIZE[1], SIZE[0])
-    for a, b in zip(frames, frames[1:]):
-        assert np.abs(a.astype(int) - b.astype(int)).mean() > 1.0, "consecutive views are identical"
-    np.testing.assert_array_equal(frames[0], frames[-1])  # the orbit returns to the first view
+def test_turntable_is_a_seamless_loop_of_distinct_views(series, tmp_path):
+    n = 5
+    out = turntable(series, tmp_path / "tt", frames=n, time_index=2, size=SIZE, progress=False)
+    frames = [imageio.imread(p) for p in sorted(out.glob("frame_*.png"))]
+    assert len(frames) == n and frames[0].shape[:2] == (SIZE[1], SIZE[0])
+    for i in range(n):
+        for j in range(i + 1, n):
+            assert np.abs(frames[i].astype(int) - frames[j].astype(int)).mean() > 0.5, \
+                f"views {i} and {j} are the same"
+    # frame n + 1 of the loop (azimuth 360) is frame 1, exactly: no repeated frame at the seam
+    with Renderer(series, size=SIZE, frames=[2]) as renderer:
+        np.testing.assert_array_equal(renderer.render(2, 360.0), frames[0])
+        np.testing.assert_array_equal(renderer.render(2, 360.0 * (n - 1) / n), frames[-1])
+    gif = turntable(series, tmp_path / "tt.gif", frames=2, time_index=2, size=SIZE,
+                    progress=False)
+    assert len(imageio.mimread(gif)) == 2  # two distinct views, not one merged frame
 
 
 def test_timelapse_mp4_has_every_frame_and_the_size(series, tmp_path):
@@ -160,9 +170,9 @@ def test_without_offscreen_opengl_run_keeps_its_series_and_render_says_why(tmp_p
                                                                              monkeypatch):
     # where neither EGL nor OSMesa is installed VTK crashes creating a window: measured, a
     # segmentation fault; blobflow must stop before that and say which packages are missing
-    import pipeline.render as render
+    import pipeline.offscreen as offscreen
 
-    monkeypatch.setattr(render, "_CAN_RENDER", False)
+    monkeypatch.setattr(offscreen, "_CAN_RENDER", False)
     out = tmp_path / "run"
     code = main(["run", "bouncing", "--frames", "3", "--set", "count=4", "--out", str(out), "-q"])
     err = capsys.readouterr().err
@@ -205,3 +215,13 @@ def test_scene_images_match_cache(scene_name, which, scene_series, verify_image_
     renderer.render(index, 0.0)
     verify_image_cache(renderer.plotter)
     renderer.close()
+
+
+def test_every_scene_has_cached_images():
+    """A new scene must come with its cached images (pytest-pyvista would otherwise write them
+    on the first run and pass)."""
+    cache = Path(__file__).resolve().parents[1] / "image_cache"
+    missing = [f"scene_images_match_cache[{which}-{name}].png" for name in available_scenes()
+               for which in ("first", "last")
+               if not (cache / f"scene_images_match_cache[{which}-{name}].png").is_file()]
+    assert not missing, f"no cached image: {missing}; run the render tests with --reset_image_cache"
