@@ -8,49 +8,11 @@ from filters.elastic.mass_spring import JelloSimulation
 from filters.elastic.topology import icosphere
 from filters.validation import check_range
 from pipeline import Flow, SimulationSource
+from pipeline.embedding import read_closed_mesh
 from pipeline.scene import Scene
 
 SCENE_FPS = 30.0
 SCENE_DURATION = 2.0
-
-
-def _load_mesh(path):
-    """Read a closed triangle mesh; ``ValueError`` naming ``mesh`` for anything else."""
-    import logging
-    import warnings
-    from pathlib import Path
-
-    import numpy as np
-    import pyvista as pv
-
-    from pipeline.algorithm import vtk_messages
-
-    if not Path(path).is_file():
-        raise ValueError(f"mesh: no such file {path!r}")
-    # PyVista reports a reader's failure as log records and a warning: keep them, say it once
-    logging.disable(logging.CRITICAL)
-    try:
-        with vtk_messages() as log, warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            data = pv.read(path)
-            mesh = data.extract_surface().triangulate().clean() if isinstance(
-                data, pv.DataSet) else None
-    except Exception as exc:  # noqa: BLE001 - any reader failure is a bad `mesh` argument
-        raise ValueError(f"mesh: {path!r} is not a mesh PyVista can read "
-                         f"({type(exc).__name__}: {exc})") from None
-    finally:
-        logging.disable(logging.NOTSET)
-    failures = log.errors + [str(w.message).splitlines()[0] for w in caught
-                             if "error" in str(w.message).lower()]
-    if failures:
-        raise ValueError(f"mesh: {path!r} cannot be read: {failures[0]}")
-    if mesh is None:
-        raise ValueError(f"mesh: {path!r} holds a {type(data).__name__}, not one mesh")
-    if mesh.n_points < 4 or mesh.n_cells < 4:
-        raise ValueError(f"mesh: {path!r} holds no closed surface ({mesh.n_points} points, "
-                         f"{mesh.n_cells} triangles)")
-    faces = mesh.faces.reshape(-1, 4)[:, 1:]
-    return np.asarray(mesh.points, dtype=np.float64), np.asarray(faces, dtype=np.int64)
 
 
 def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing: float = 0.04,
@@ -93,7 +55,7 @@ def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing:
     import numpy as np
 
     if mesh:
-        points, triangles = _load_mesh(mesh)
+        points, triangles = read_closed_mesh(mesh)
     else:
         points, triangles = icosphere(check_range("radius", radius, 0.0, low_inclusive=False), 3)
     height = check_range("height", height, 0.0)
