@@ -49,11 +49,10 @@ terms, and for particles (``W = I``) it is the exact Gauss-Newton Hessian.
 from __future__ import annotations
 
 import math
-from contextlib import contextmanager
 
-import numba
 import numpy as np
 
+from .threads import serial_below
 from ..validation import check_range
 from .contact import Colliders
 from .contact_kernels import (barrier, barrier_energies, contact_clearance, contact_terms,
@@ -71,17 +70,9 @@ DEFAULT_SLIP_VELOCITY = 1e-3
 PARALLEL_MIN_POINTS = 50_000
 
 
-@contextmanager
 def _threads(points):
-    if points >= PARALLEL_MIN_POINTS:
-        yield
-        return
-    previous = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(previous)
+    """One thread below ``PARALLEL_MIN_POINTS`` (:func:`filters.elastic.threads.serial_below`)."""
+    return serial_below(points, PARALLEL_MIN_POINTS)
 
 
 # ---------------------------------------------------------------------------------------------

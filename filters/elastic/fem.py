@@ -20,11 +20,10 @@ follows :meth:`FEMSystem.elastic_diagonal`.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 
-import numba
 import numpy as np
 
+from .threads import serial_below
 from ..linalg import ImplicitSystem
 from ..validation import check_finite_vector, check_points, check_range
 from .fem_kernels import (CHUNK, assemble_stiffness, color_chunks, csr_matvec, element_energies,
@@ -46,17 +45,9 @@ __all__ = [
 PARALLEL_MIN_TETS = 8192
 
 
-@contextmanager
 def _threads(work):
-    if work >= PARALLEL_MIN_TETS:
-        yield
-        return
-    previous = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(previous)
+    """One thread below ``PARALLEL_MIN_TETS`` (:func:`filters.elastic.threads.serial_below`)."""
+    return serial_below(work, PARALLEL_MIN_TETS)
 
 
 def _check_tets(tets, n_points):

@@ -32,11 +32,10 @@ as linear springs of which some have negative stiffness (their sum is positive s
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 
-import numba
 import numpy as np
 
+from .threads import serial_below
 from ..linalg import BlockOperator, ImplicitSystem
 from ..validation import check_choice, check_finite_vector, check_points, check_range
 from .spring_kernels import (assemble_system, elastic_energy,
@@ -68,18 +67,9 @@ PARALLEL_MIN_SPRINGS = 50_000
 PARALLEL_MIN_SPRINGS_EXPLICIT = 8_192
 
 
-@contextmanager
 def _threads(work):
-    """Run the enclosed Numba parallel kernels on one thread when ``work`` is small."""
-    if work >= PARALLEL_MIN_SPRINGS:
-        yield
-        return
-    previous = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(previous)
+    """One thread below ``PARALLEL_MIN_SPRINGS`` (:func:`filters.elastic.threads.serial_below`)."""
+    return serial_below(work, PARALLEL_MIN_SPRINGS)
 
 
 # ---------------------------------------------------------------------------------------------
