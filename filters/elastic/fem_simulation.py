@@ -20,14 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..integrators import check_scheme
-from ..linalg import LinearSolver
 from ..simulation import Frame, OutputSpec, State
-from ..validation import check_finite_vector, check_int, check_range
-from .contact import Colliders
+from ..validation import check_finite_vector, check_range
 from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, ContactModel
 from .fem import FEMSystem, tet_geometry
-from .mass_spring import MassSpringSimulation
+from .mass_spring import MassSpringSimulation, check_stepping
 from .materials import material_parameters
 from .tetmesh import TetMesh, tets_from_mesh
 
@@ -162,16 +159,9 @@ class FEMSimulation(MassSpringSimulation):
         mass_damping = check_range("mass_damping", mass_damping, 0.0)
         stiffness_damping = check_range("stiffness_damping", stiffness_damping, 0.0)
         gravity = check_finite_vector("gravity", gravity, 3)
-        check_scheme(scheme)
-        self.linear_solver = LinearSolver(solver)
-        if colliders is not None and not isinstance(colliders, Colliders):
-            raise TypeError(f"colliders must be a Colliders object, got {type(colliders).__name__}")
-        self.max_dt = check_range("max_dt", max_dt, 0.0, math.inf, low_inclusive=False)
-        substeps = check_int("substeps", substeps, 1)
-        self._newton = dict(newton_tol=check_range("newton_tol", newton_tol, 0.0, math.inf,
-                                                   low_inclusive=False),
-                            max_newton=check_int("max_newton", max_newton, 1))
-        max_speed = check_range("max_speed", max_speed, 0.0, math.inf, low_inclusive=False)
+        (self.linear_solver, self.max_dt, substeps, self._newton,
+         max_speed) = check_stepping(scheme, solver, colliders, max_dt, substeps, newton_tol,
+                                     max_newton, max_speed)
         check_range("contact_ratio", contact_ratio, 0.0, math.inf, low_inclusive=False)
         check_range("slip_velocity", slip_velocity, 0.0, math.inf, low_inclusive=False)
         if contact_stiffness is not None:

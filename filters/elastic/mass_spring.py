@@ -34,6 +34,7 @@ __all__ = [
     "ClothSimulation",
     "HairSimulation",
     "JelloSimulation",
+    "check_stepping",
 ]
 
 
@@ -84,6 +85,33 @@ def _per_kind(kinds, stretch, shear, bend):
     values[kinds == BEND] = bend
     return values
 
+
+
+def check_stepping(scheme, solver, colliders, max_dt, substeps, newton_tol, max_newton,
+                   max_speed):
+    """Check the stepping parameters every elastic simulation takes.
+
+    Returns
+    -------
+    tuple
+        ``(LinearSolver, max_dt, substeps, {"newton_tol", "max_newton"}, max_speed)``.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Naming the parameter and its valid range.
+    """
+    check_scheme(scheme)
+    linear_solver = LinearSolver(solver)
+    if colliders is not None and not isinstance(colliders, Colliders):
+        raise TypeError(f"colliders must be a Colliders object, got {type(colliders).__name__}")
+    max_dt = check_range("max_dt", max_dt, 0.0, math.inf, low_inclusive=False)
+    substeps = check_int("substeps", substeps, 1)
+    newton = dict(newton_tol=check_range("newton_tol", newton_tol, 0.0, math.inf,
+                                         low_inclusive=False),
+                  max_newton=check_int("max_newton", max_newton, 1))
+    max_speed = check_range("max_speed", max_speed, 0.0, math.inf, low_inclusive=False)
+    return linear_solver, max_dt, substeps, newton, max_speed
 
 class MassSpringSimulation(Simulation):
     """Particles joined by damped springs, advanced by an explicit or implicit Euler scheme.
@@ -172,16 +200,9 @@ class MassSpringSimulation(Simulation):
         check_choice("damping_mode", damping_mode, DAMPING_MODES)
         drag = check_range("drag", drag, 0.0)
         gravity = check_finite_vector("gravity", gravity, 3)
-        check_scheme(scheme)
-        self.linear_solver = LinearSolver(solver)
-        if colliders is not None and not isinstance(colliders, Colliders):
-            raise TypeError(f"colliders must be a Colliders object, got {type(colliders).__name__}")
-        self.max_dt = check_range("max_dt", max_dt, 0.0, math.inf, low_inclusive=False)
-        substeps = check_int("substeps", substeps, 1)
-        self._newton = dict(newton_tol=check_range("newton_tol", newton_tol, 0.0, math.inf,
-                                                   low_inclusive=False),
-                            max_newton=check_int("max_newton", max_newton, 1))
-        max_speed = check_range("max_speed", max_speed, 0.0, math.inf, low_inclusive=False)
+        (self.linear_solver, self.max_dt, substeps, self._newton,
+         max_speed) = check_stepping(scheme, solver, colliders, max_dt, substeps, newton_tol,
+                                     max_newton, max_speed)
         stiffness = _per_kind(topology.kinds, k_stretch, k_shear, k_bend)
         damp = np.full(topology.springs.shape[0], damping)
         for a in (stiffness, damp):
