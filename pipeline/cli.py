@@ -376,6 +376,18 @@ def _write_text_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _compile_surface_alongside(flow, record: dict) -> None:
+    """On a first run, compile the liquid surface's kernels in a second process while the
+    simulation compiles and steps (:mod:`pipeline.warmup`)."""
+    from .surface_options import surface_options_from_record
+    from .warmup import compile_surface_in_background, simulate_while
+
+    worker = compile_surface_in_background(surface_options_from_record(record),
+                                           flow.source.simulation.output_spec)
+    if worker is not None:
+        simulate_while(worker, flow.source)
+
+
 def _cmd_run(args) -> int:
     from filters.simulation import SimulationError
 
@@ -439,6 +451,8 @@ def _cmd_run(args) -> int:
         _remove_renders(out)
     record = _scene_record(scene, parameters, fps, flow.written_outputs())
     _write_text_atomic(out / "scene.json", json.dumps(record, indent=1, default=list) + "\n")
+    if not args.resume and "surface" in flow.written_outputs():
+        _compile_surface_alongside(flow, record)
     try:
         paths = flow.run(out, resume=args.resume, progress=not args.quiet)
     except SeriesError as exc:  # a checkpoint frame on disk that cannot be read

@@ -284,7 +284,7 @@ class Flow:
         writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}
         start = self._resume_point(writers) if resume else 0
         if start == 0:
-            self.source.reset()
+            self.source.rewind()
         times = self.times
         bar = tqdm(total=len(times), initial=start, unit="frame", disable=not progress,
                    desc=f"{directory.name or 'run'}", leave=True)

@@ -270,6 +270,7 @@ class Renderer:
         self._add_colliders()
         for layer in self.layers:
             self._add_layer(layer, indices[0] if indices else 0)
+        self._shown = None  # the frame the layers hold for drawing (none labelled yet)
         self._text = None
         if text:
             self._text = actors.label(self._inner, side, ss)
@@ -466,6 +467,23 @@ class Renderer:
         over_near, over_far = self._over.GetActiveCamera().GetClippingRange()
         self._scene.GetActiveCamera().SetClippingRange(min(near, over_near), max(far, over_far))
 
+    def _show(self, index: int) -> None:
+        """Fill every layer with frame ``index`` and label it."""
+        points = triangles = 0
+        for layer in self.layers:
+            data = self._frame(layer, index)
+            self._fill(layer, data)
+            points += data.n_points
+            if hasattr(data, "GetNumberOfPolys"):
+                triangles += data.GetNumberOfPolys()
+        if self._text is not None:
+            t = self.times[index] if len(self.times) else 0.0
+            words = f"t = {t:.2f} s    {points:,} points"
+            if triangles:
+                words += f"    {triangles:,} triangles"
+            self._text.SetInput(words)
+        self._shown = index
+
     def render(self, index: int = -1, azimuth: float = 0.0) -> np.ndarray:
         """Draw frame ``index`` seen from ``azimuth`` degrees about the vertical axis.
 
@@ -482,19 +500,8 @@ class Renderer:
         elif not -n <= index < n:
             raise IndexError(f"index must be in [{-n}, {n - 1}], got {index}")
         index = index % n if n else 0
-        points = triangles = 0
-        for layer in self.layers:
-            data = self._frame(layer, index)
-            self._fill(layer, data)
-            points += data.n_points
-            if hasattr(data, "GetNumberOfPolys"):
-                triangles += data.GetNumberOfPolys()
-        if self._text is not None:
-            t = self.times[index] if n else 0.0
-            words = f"t = {t:.2f} s    {points:,} points"
-            if triangles:
-                words += f"    {triangles:,} triangles"
-            self._text.SetInput(words)
+        if index != self._shown:  # a turntable draws one frame from many sides: read it once
+            self._show(index)
         self._place_camera(float(azimuth) % 360.0)
         self.plotter.render()
         image = np.asarray(self.plotter.screenshot(return_img=True))[..., :3]

@@ -71,6 +71,7 @@ class SimulationSource(Algorithm):
         self.set_frames(fps, duration, frames)
         self._initial = simulation.get_state()
         self._cache: OrderedDict[float, State] = OrderedDict()
+        self._from_initial = True  # the cached states were simulated from ``_initial``
         self._last_output = None  # (time, dataset) of the last RequestData
 
     # -- configuration -------------------------------------------------------------------------
@@ -85,6 +86,7 @@ class SimulationSource(Algorithm):
 
     def reset(self, state: State | None = None) -> None:
         """Restart from ``state`` (or the initial state), which becomes the cached start."""
+        self._from_initial = state is None or state is self._initial
         state = self._initial if state is None else state
         self.simulation.set_state(state)
         self._cache.clear()
@@ -92,9 +94,21 @@ class SimulationSource(Algorithm):
         self._last_output = None
         self.Modified()
 
+    def rewind(self) -> None:
+        """Back to the initial state, keeping the cached frame states when they were simulated
+        from it (frames asked for before a run are not simulated again; the solvers are
+        deterministic, so they are the states the run would reach); otherwise :meth:`reset`."""
+        if not self._from_initial:
+            self.reset()
+            return
+        self.simulation.set_state(self._initial)
+        self._last_output = None
+        self.Modified()
+
     def restore(self, state: State) -> None:
         """Continue from a checkpoint (e.g. the last frame of a series on disk, to resume)."""
         self.simulation.set_state(state)
+        self._from_initial = False
         self._remember(self.simulation.get_state())
         self._last_output = None
         self.Modified()
