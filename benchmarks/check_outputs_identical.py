@@ -167,7 +167,7 @@ def decoded_digest(path: Path) -> dict:
         cells = data.GetCells()
         record["cells"] = [_array_digest("offsets", cells.GetOffsetsArray()),
                            _array_digest("connectivity", cells.GetConnectivityArray()),
-                           _array_digest("types", data.GetCellTypesArray())]
+                           _array_digest("types", data.GetCellTypes())]  # VTK >= 9.4
     record["point_data"] = _attributes(data.GetPointData())
     record["cell_data"] = _attributes(data.GetCellData())
     record["field_data"] = _attributes(data.GetFieldData())
