@@ -101,7 +101,10 @@ def compile_surface_in_background(options: dict, spec):
     context = multiprocessing.get_context("spawn")  # no forked copy of VTK/Numba state
     worker = context.Process(target=_compile_surface, args=(options, spec), daemon=True,
                              name="blobflow-surface-compile")
-    worker.start()
+    try:
+        worker.start()
+    except OSError:  # no process to be had (limits, sandbox): the run compiles as it goes
+        return None
     return worker
 
 
