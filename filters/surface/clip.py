@@ -73,6 +73,39 @@ def _cut(tris, d, edge_key, edge_vertex, n_points):
     return out[:m].copy()
 
 
+@njit(cache=True)
+def _crossing_keys(tris, d, n_points):
+    """Keys ``min * n_points + max`` of the edges whose ends lie strictly on both sides of the
+    plane (signed distances ``d``), once per triangle side (an edge inside the mesh twice)."""
+    keys = np.empty(3 * tris.shape[0], np.int64)
+    m = 0
+    for f in range(tris.shape[0]):
+        for e in range(3):
+            v = tris[f, e]
+            w = tris[f, (e + 1) % 3]
+            if (d[v] > 0.0 and d[w] < 0.0) or (d[v] < 0.0 and d[w] > 0.0):
+                keys[m] = min(v, w) * n_points + max(v, w)
+                m += 1
+    return keys[:m].copy()
+
+
+@njit(cache=True)
+def _plane_edges(tris, on_plane):
+    """The directed edges ``(tris[f, e], tris[f, e + 1])`` with both ends on the plane, side
+    ``e = 0, 1, 2`` in turn, triangles in order within each."""
+    out = np.empty((3 * tris.shape[0], 2), np.int64)
+    m = 0
+    for e in range(3):
+        for f in range(tris.shape[0]):
+            v = tris[f, e]
+            w = tris[f, (e + 1) % 3]
+            if on_plane[v] and on_plane[w]:
+                out[m, 0] = v
+                out[m, 1] = w
+                m += 1
+    return out[:m].copy()
+
+
 def clip_half_space(points, triangles, axis: int, value: float, keep: int, *, data=None,
                     eps: float = 0.0):
     """Cut a closed triangle mesh by the plane ``x_axis = value``.
@@ -117,11 +150,11 @@ def clip_half_space(points, triangles, axis: int, value: float, keep: int, *, da
     on = np.abs(d) <= eps
     d[on] = 0.0
     pts[on, axis] = value
+    if not (d <= 0.0).any():  # the whole mesh strictly on the kept side: nothing to cut
+        data = None if data is None else np.array(data, np.float64)
+        return pts, tris.copy(), data, np.zeros((0, 2), np.int64)
     # the edges that cross the plane, each once, and their new vertices
-    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-    cross = ((d[e[:, 0]] > 0) & (d[e[:, 1]] < 0)) | ((d[e[:, 0]] < 0) & (d[e[:, 1]] > 0))
-    e = np.sort(e[cross], axis=1)
-    key = np.unique(e[:, 0] * n + e[:, 1])
+    key = np.unique(_crossing_keys(tris, d, n))
     i, j = key // n, key % n
     t = d[i] / (d[i] - d[j])
     new = pts[i] + t[:, None] * (pts[j] - pts[i])
@@ -133,8 +166,7 @@ def clip_half_space(points, triangles, axis: int, value: float, keep: int, *, da
         data = np.concatenate([data, data[i] + t[:, None] * (data[j] - data[i])])
     # boundary of the kept part: directed edges on the plane whose reverse no kept triangle has
     on_plane = np.concatenate([on, np.ones(key.size, bool)])
-    de = np.concatenate([kept[:, [0, 1]], kept[:, [1, 2]], kept[:, [2, 0]]])
-    de = de[on_plane[de[:, 0]] & on_plane[de[:, 1]]]
+    de = _plane_edges(kept, on_plane)
     size = pts.shape[0]
     forward = de[:, 0] * size + de[:, 1]
     backward = de[:, 1] * size + de[:, 0]
@@ -320,15 +352,30 @@ def wall_constraints(points, triangles, lower, upper):
     faces : (T,) bool
         Triangles with their three vertices on the same wall.
     """
-    p = np.asarray(points, np.float64)
-    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+    t = np.ascontiguousarray(triangles, np.int64).reshape(-1, 3)
     lower = np.asarray(lower, np.float64)
     upper = np.asarray(upper, np.float64)
     tol = WALL_TOLERANCE * float(np.max(upper - lower))
-    on_lo = np.abs(p - lower) <= tol
-    on_hi = np.abs(p - upper) <= tol
-    free = (~(on_lo | on_hi)).astype(np.float64)
-    faces = np.zeros(t.shape[0], bool)
-    for on in (on_lo, on_hi):
-        faces |= (on[t[:, 0]] & on[t[:, 1]] & on[t[:, 2]]).any(axis=1)
+    return _wall_constraints(p, t, lower, upper, tol)
+
+
+@njit(cache=True)
+def _wall_constraints(p, t, lower, upper, tol):
+    # bit a of on_lo / on_hi: the vertex lies on the lower / upper wall normal to axis a
+    on_lo = np.zeros(p.shape[0], np.uint8)
+    on_hi = np.zeros(p.shape[0], np.uint8)
+    free = np.ones((p.shape[0], 3), np.float64)
+    for v in range(p.shape[0]):
+        for a in range(3):
+            if abs(p[v, a] - lower[a]) <= tol:
+                on_lo[v] |= 1 << a
+                free[v, a] = 0.0
+            if abs(p[v, a] - upper[a]) <= tol:
+                on_hi[v] |= 1 << a
+                free[v, a] = 0.0
+    faces = np.zeros(t.shape[0], np.bool_)
+    for f in range(t.shape[0]):
+        a, b, c = t[f, 0], t[f, 1], t[f, 2]
+        faces[f] = ((on_lo[a] & on_lo[b] & on_lo[c]) | (on_hi[a] & on_hi[b] & on_hi[c])) != 0
     return free, faces
