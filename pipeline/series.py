@@ -125,6 +125,9 @@ def write_frame(data: vtkDataObject, path) -> Path:
     writer.SetDataModeToAppended()
     writer.EncodeAppendedDataOff()
     writer.SetCompressorTypeToZLib()
+    # level 1: float arrays hardly compress at any level (3.98 against 4.00 MB for a 31k-particle
+    # frame at level 5), and level 1 writes 20-30 % faster
+    writer.SetCompressionLevel(1)
     writer.SetHeaderTypeToUInt64()
     if writer.Write() != 1 or writer.GetErrorCode() != 0:
         tmp.unlink(missing_ok=True)
