@@ -122,8 +122,15 @@ def simulate_while(worker, source, limit: int = MAX_FRAMES_AHEAD) -> int:
     """
     from filters.simulation import SimulationError
 
+    import numba
+
     ahead = 0
     limit = min(limit, source.cache_size)
+    threads = numba.get_num_threads()
+    # one core for the compiling process, the others for the simulation: a thread more than
+    # the cores would stall the simulation's parallel loops (and the results do not depend on
+    # the number of threads)
+    numba.set_num_threads(max(1, min(threads, _usable_cores() - 1)))
     try:
         for t in source.times[1:limit + 1]:
             if not worker.is_alive():
@@ -133,5 +140,6 @@ def simulate_while(worker, source, limit: int = MAX_FRAMES_AHEAD) -> int:
     except SimulationError:
         pass
     finally:
+        numba.set_num_threads(threads)
         worker.join()
     return ahead

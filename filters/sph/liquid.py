@@ -111,7 +111,9 @@ class SPHLiquid(Simulation):
     threads : int, optional
         Numba threads to use while stepping.  Default: 1 below 20,000 particles (on a busy
         machine, waking threads for a dozen short parallel loops per step costs more than it
-        saves), otherwise all of Numba's threads.
+        saves), otherwise as many as Numba uses when the step starts
+        (``numba.get_num_threads()``, which ``numba.set_num_threads`` lowers).  The results do
+        not depend on it.
     solver : {"wcsph", "dfsph"}
         ``"wcsph"`` (default): Tait equation of state, acoustic CFL step.  ``"dfsph"``:
         divergence-free SPH (Bender & Koschier 2017, :mod:`filters.sph.dfsph`), a divergence solve
@@ -278,9 +280,7 @@ class SPHLiquid(Simulation):
             self._boundary = (bx, bstart, blo, self._bcell, bdims,
                               boundary_reach_mask(bx, blo, self._bcell, bdims), bv, self._bpsi)
             self._no_boundary = (np.zeros((n, 1), dtype=np.int32), np.zeros(n, dtype=np.int32))
-        if threads is None:
-            threads = 1 if n < 20_000 else numba.config.NUMBA_NUM_THREADS
-        self.threads = threads
+        self.threads = threads  # None: decided at each step (_step_threads)
         self._bcapacity = 32
 
     # -- protocol -------------------------------------------------------------------------
@@ -293,7 +293,7 @@ class SPHLiquid(Simulation):
         """Current positions with ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure`` (Pa)
         evaluated at these positions, and ``id``."""
         previous = numba.get_num_threads()
-        numba.set_num_threads(self.threads)
+        numba.set_num_threads(self._step_threads(previous))
         try:
             if self.model.solver == "dfsph":
                 self._neighbourhood()
@@ -472,9 +472,14 @@ class SPHLiquid(Simulation):
             np.maximum(self._rho / m.rest_density - 1.0, 0.0).mean())
         return err
 
+    def _step_threads(self, current: int) -> int:
+        if self.threads is not None:
+            return self.threads
+        return 1 if self.state.positions.shape[0] < 20_000 else current
+
     def _step(self, dt: float) -> None:
         previous = numba.get_num_threads()
-        numba.set_num_threads(self.threads)
+        numba.set_num_threads(self._step_threads(previous))
         try:
             self._step_impl(dt)
         finally:
