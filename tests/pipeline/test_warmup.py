@@ -116,3 +116,24 @@ def test_nothing_starts_without_surface_options_or_with_a_warm_cache(monkeypatch
     monkeypatch.setattr(warmup, "surface_cache_is_warm", lambda: True)
     options = surface_options_from_record({"parameters": params})
     assert warmup.compile_surface_in_background(options, spec) is None
+
+
+def test_simulating_ahead_leaves_a_core_to_the_compiling_process(monkeypatch):
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    monkeypatch.setattr(warmup, "_usable_cores", lambda: 2)
+    seen = []
+
+    class Source:
+        cache_size = 16
+        times = np.arange(4) / 30.0
+
+        def go_to(self, t):
+            seen.append(numba.get_num_threads())
+
+    before = numba.get_num_threads()
+    assert warmup.simulate_while(_Worker(checks=99), Source()) == 3
+    assert seen == [1, 1, 1]
+    assert numba.get_num_threads() == before

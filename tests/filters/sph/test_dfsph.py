@@ -144,6 +144,31 @@ def test_bitwise_identical_across_thread_counts():
     np.testing.assert_array_equal(w1.state.positions, w2.state.positions)
 
 
+
+def test_default_threads_follow_the_callers_numba_threads(monkeypatch):
+    """threads=None: a liquid of >= 20,000 particles steps on as many threads as Numba uses when
+    the step starts, so ``numba.set_num_threads`` lowers it (the first run's look-ahead steps on
+    one thread while the surface compiles on the other core); the caller's count is restored."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    sim = dam_break_liquid(spacing=0.0045, solver="dfsph")
+    assert sim.state.positions.shape[0] >= 20_000
+    seen = []
+    monkeypatch.setattr(sim, "_step_impl", lambda dt: seen.append(numba.get_num_threads()))
+    previous = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        sim.step(1e-4)
+        assert numba.get_num_threads() == 1
+    finally:
+        numba.set_num_threads(previous)
+    sim.step(1e-4)
+    assert seen == [1, previous]
+    small = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
+    monkeypatch.setattr(small, "_step_impl", lambda dt: seen.append(numba.get_num_threads()))
+    small.step(1e-4)
+    assert seen[-1] == 1  # small liquids stay on one thread
+
 def test_checkpoint_resumes_bit_identically():
     sim = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
     sim.advance_to(0.03)
