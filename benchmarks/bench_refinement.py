@@ -10,7 +10,9 @@ reads every frame back and records, per frame, the mean compression ``mean(max(r
 
 A run folder that already holds a complete series of the same parameters is read, not rerun
 (``--runs DIR``, default ``outputs/refinement``; its wall time is kept beside it in
-``bench_refinement_timing.json``): the quarter-spacing run takes hours here.
+``bench_refinement_timing.json``): the quarter-spacing run takes hours here.  With
+``--read-partial`` a run that stopped short of the duration (killed, or resumed in pieces with
+``blobflow run ... --resume``) is read as far as it got; its timing file then says how it ran.
 
     python benchmarks/bench_refinement.py [--divisors 1 2 4] [--duration 0.6]
 
@@ -43,18 +45,24 @@ def _blobflow() -> list[str]:
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "pipeline"]
 
 
-def _complete(folder: Path, spacing: float, duration: float) -> bool:
-    """Whether ``folder`` holds a finished run of the dam break at ``spacing`` to ``duration``."""
+def _written_to(folder: Path, spacing: float) -> float | None:
+    """The last frame time of a dam break at ``spacing`` in ``folder`` (None: no such run)."""
     record, pvd = folder / "scene.json", folder / "particles.pvd"
     if not (record.exists() and pvd.exists()):
-        return False
+        return None
     params = json.loads(record.read_text())["parameters"]
     if params.get("spacing") != spacing or params.get("surface"):
-        return False
+        return None
     from pipeline.series import read_collection
 
     entries = read_collection(pvd)
-    return bool(entries) and abs(entries[-1][0] - duration) < 1e-9
+    return entries[-1][0] if entries else None
+
+
+def _complete(folder: Path, spacing: float, duration: float) -> bool:
+    """Whether ``folder`` holds a finished run of the dam break at ``spacing`` to ``duration``."""
+    last = _written_to(folder, spacing)
+    return last is not None and abs(last - duration) < 1e-9
 
 
 def analyse(folder: Path) -> list[dict]:
@@ -95,6 +103,9 @@ def main(argv=None) -> int:
     parser.add_argument("--duration", type=float, default=0.6, help="simulated s (default 0.6)")
     parser.add_argument("--runs", default=str(ROOT / "outputs" / "refinement"),
                         help="folder of the runs (kept; complete ones are read, not rerun)")
+    parser.add_argument("--read-partial", action="store_true",
+                        help="read a run that stopped short of --duration as far as it got "
+                             "instead of rerunning it (its timing file says how it stopped)")
     args = parser.parse_args(argv)
     cases = []
     for d in args.divisors:
@@ -105,6 +116,11 @@ def main(argv=None) -> int:
             outcome = {"exit_code": 0, "wall_s": None, "message": "read from an earlier run"}
             if timing.exists():  # the earlier run's own measurement
                 outcome.update(json.loads(timing.read_text()), message="read from an earlier run")
+        elif args.read_partial and _written_to(folder, spacing) is not None:
+            outcome = {"exit_code": None, "wall_s": None,
+                       "message": f"partial run read to t = {_written_to(folder, spacing):g} s"}
+            if timing.exists():
+                outcome.update(json.loads(timing.read_text()))
         else:
             outcome = run(folder, spacing, args.duration)
             folder.mkdir(parents=True, exist_ok=True)
@@ -130,7 +146,7 @@ def main(argv=None) -> int:
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                     "python": platform.python_version()},
         "cases": cases}, indent=1) + "\n")
-    return 0 if all(c["exit_code"] == 0 for c in cases) else 1
+    return 0 if all(c["exit_code"] in (0, None) for c in cases) else 1
 
 
 if __name__ == "__main__":
