@@ -1,0 +1,78 @@
+"""The layering rule of DESIGN.md, read from the source: ``scenes -> pipeline -> filters``.
+
+``filters/`` imports no VTK, PyVista, ``pipeline`` or ``scenes`` (every filter runs on arrays
+alone); ``pipeline/`` never imports ``scenes`` (scenes are found through entry points); and no
+module of ``filters/`` imports another module's ``_private`` name.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _modules(package: str) -> list[Path]:
+    return sorted((ROOT / package).rglob("*.py"))
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path):
+    """Yield ``(line, imported module, names)`` for every import in ``path``, relative resolved."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name, []
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[:len(anchor) - (node.level - 1)]
+                base = ".".join(anchor + ([base] if base else []))
+            yield node.lineno, base, [a.name for a in node.names]
+
+
+def _top(module: str) -> str:
+    return module.split(".")[0]
+
+
+def _violations(package: str, forbidden: set[str]) -> list[str]:
+    return [f"{path.relative_to(ROOT)}:{line} imports {module}"
+            for path in _modules(package)
+            for line, module, _ in _imports(path) if _top(module) in forbidden]
+
+
+def test_the_import_reader_sees_relative_imports():
+    # The rule is only as good as the reader: a relative import must resolve to its package.
+    names = {m for _, m, _ in _imports(ROOT / "filters" / "sph" / "liquid.py")}
+    assert any(m.startswith("filters.") for m in names), names
+
+
+@pytest.mark.parametrize("package, forbidden", [
+    ("filters", {"vtk", "vtkmodules", "pyvista", "paraview", "pipeline", "scenes"}),
+    ("pipeline", {"scenes"}),
+])
+def test_lower_layers_do_not_import_upper_ones(package, forbidden):
+    assert _violations(package, forbidden) == []
+
+
+def test_filters_import_only_public_names_of_other_modules():
+    found = []
+    for path in _modules("filters"):
+        own = _module_name(path)
+        for line, module, names in _imports(path):
+            if _top(module) != "filters" or module == own:
+                continue
+            private = [n for n in names if n.startswith("_") and not n.startswith("__")]
+            if private:
+                found.append(f"{path.relative_to(ROOT)}:{line} {module} {private}")
+    assert found == []
