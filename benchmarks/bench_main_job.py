@@ -34,11 +34,8 @@ from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results" / "main_job.json"
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _blobflow() -> list[str]:
-    exe = Path(sys.executable).with_name("blobflow")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "pipeline"]
+#: The command line, run by this interpreter (what the `blobflow` script runs).
+BLOBFLOW = [sys.executable, "-m", "pipeline"]
 
 
 def _children_cpu() -> float:
@@ -53,12 +50,12 @@ def run_once(out: Path, cache: Path) -> dict:
         shutil.rmtree(out)
     cpu0 = _children_cpu()
     start = time.perf_counter()
-    proc = subprocess.Popen(_blobflow() + ["run", "dam_break", "--out", str(out)], cwd=ROOT,
+    proc = subprocess.Popen(BLOBFLOW + ["run", "dam_break", "--out", str(out)], cwd=ROOT,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     phases = {}
     buffer = b""
     while True:
-        chunk = proc.stdout.read1(4096) if hasattr(proc.stdout, "read1") else proc.stdout.read(1)
+        chunk = proc.stdout.read1(4096)  # what is there, without waiting for 4096 bytes
         if not chunk:
             break
         buffer += chunk

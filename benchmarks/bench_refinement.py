@@ -34,15 +34,12 @@ import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results" / "refinement.json"
 ROOT = Path(__file__).resolve().parents[1]
+#: The command line, run by this interpreter (what the `blobflow` script runs).
+BLOBFLOW = [sys.executable, "-m", "pipeline"]
 DEFAULT_SPACING = 0.004
 REST_DENSITY = 1000.0
 #: Kept in each run folder: the wall time and exit code of the run that wrote it.
 TIMING_FILE = "bench_refinement_timing.json"
-
-
-def _blobflow() -> list[str]:
-    exe = Path(sys.executable).with_name("blobflow")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "pipeline"]
 
 
 def _written_to(folder: Path, spacing: float) -> float | None:
@@ -86,7 +83,7 @@ def analyse(folder: Path) -> list[dict]:
 
 
 def run(folder: Path, spacing: float, duration: float) -> dict:
-    cmd = _blobflow() + ["run", "dam_break", "--set", f"spacing={spacing}", "--set",
+    cmd = BLOBFLOW + ["run", "dam_break", "--set", f"spacing={spacing}", "--set",
                          "surface=false", "--duration", str(duration), "--no-render", "--quiet",
                          "--out", str(folder)]
     start = time.perf_counter()
@@ -116,9 +113,9 @@ def main(argv=None) -> int:
             outcome = {"exit_code": 0, "wall_s": None, "message": "read from an earlier run"}
             if timing.exists():  # the earlier run's own measurement
                 outcome.update(json.loads(timing.read_text()), message="read from an earlier run")
-        elif args.read_partial and _written_to(folder, spacing) is not None:
+        elif args.read_partial and (last := _written_to(folder, spacing)) is not None:
             outcome = {"exit_code": None, "wall_s": None,
-                       "message": f"partial run read to t = {_written_to(folder, spacing):g} s"}
+                       "message": f"partial run read to t = {last:g} s"}
             if timing.exists():
                 outcome.update(json.loads(timing.read_text()))
         else:

@@ -144,7 +144,6 @@ def test_bitwise_identical_across_thread_counts():
     np.testing.assert_array_equal(w1.state.positions, w2.state.positions)
 
 
-
 def test_default_threads_follow_the_callers_numba_threads(monkeypatch):
     """threads=None: a liquid of >= 20,000 particles steps on as many threads as Numba uses when
     the step starts, so ``numba.set_num_threads`` lowers it (the first run's look-ahead steps on
@@ -168,6 +167,7 @@ def test_default_threads_follow_the_callers_numba_threads(monkeypatch):
     monkeypatch.setattr(small, "_step_impl", lambda dt: seen.append(numba.get_num_threads()))
     small.step(1e-4)
     assert seen[-1] == 1  # small liquids stay on one thread
+
 
 def test_checkpoint_resumes_bit_identically():
     sim = dam_break_liquid(column_width=0.06, depth=0.04, spacing=0.01, solver="dfsph")
