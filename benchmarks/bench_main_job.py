@@ -84,6 +84,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=1, help="cold + warm pairs (default 1)")
     args = parser.parse_args(argv)
+    if args.repeat < 1:
+        parser.error(f"--repeat must be >= 1 (got {args.repeat})")
     runs = []
     with tempfile.TemporaryDirectory(prefix="blobflow-main-job-") as tmp:
         for k in range(args.repeat):

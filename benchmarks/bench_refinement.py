@@ -104,6 +104,10 @@ def main(argv=None) -> int:
                         help="read a run that stopped short of --duration as far as it got "
                              "instead of rerunning it (its timing file says how it stopped)")
     args = parser.parse_args(argv)
+    if min(args.divisors) < 1:
+        parser.error(f"--divisors must be whole numbers >= 1 (got {args.divisors})")
+    if not args.duration > 0:
+        parser.error(f"--duration must be > 0 s (got {args.duration})")
     cases = []
     for d in args.divisors:
         spacing = round(DEFAULT_SPACING / d, 9)
