@@ -25,7 +25,12 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   distance to the next frame's surface: the surface motion the liquid's motion does not
   explain. RMS over the vertices more than one spacing from the tank walls (pysplashsurf does
   not clip at the walls), the same with distances capped at one spacing (a drop forming or
-  merging moves the surface by more), and the fraction above half a spacing.
+  merging moves the surface by more), and the fraction above half a spacing. Two more views
+  of the same signed distances: ``beyond_uniform_offset``, the RMS once each piece's mean
+  (a uniform offset of a closed piece: the volume it gains or loses) is removed, and
+  ``flicker``, the RMS of half the sum of a vertex's forward and backward unexplained
+  displacements (to the next and to the previous frame's surface, both within a spacing): a
+  steady drift cancels in it, a surface that jumps out and back for one frame does not.
 * ``thin_features``: jittered single and double particle layers (16 x 16 particles, in-plane
   spacing 1.0-1.8 s, layers s apart): components, cavities (closed bubbles inside) and holes
   (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every
@@ -124,6 +129,12 @@ def holes(points, triangles):
 
 def distances(points, mesh):
     """Unsigned distance (m) of ``points`` to the triangle mesh ``(vertices, triangles)``."""
+    return np.abs(signed_distances(points, mesh))
+
+
+def signed_distances(points, mesh):
+    """Signed distance (m) of ``points`` to the closed triangle mesh ``(vertices, triangles)``
+    (positive outside)."""
     from vtkmodules.util import numpy_support
     from vtkmodules.vtkCommonCore import vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkPolyData
@@ -145,8 +156,8 @@ def distances(points, mesh):
     f.SetInputData(cloud)
     f.ComputeGradientsOff()
     f.Update()
-    return np.abs(numpy_support.vtk_to_numpy(f.GetOutput().GetPointData().GetScalars())
-                  .astype(np.float64))
+    return numpy_support.vtk_to_numpy(f.GetOutput().GetPointData().GetScalars()).astype(
+        np.float64)
 
 
 def away_from_walls(points, tank, margin):
@@ -339,28 +350,58 @@ def run_motion(report, *settings):
     for name, fn in (("scene", lambda x: scene_surface(x, spacing, tank)),
                      ("splashsurf", lambda x: splashsurf_surface(x, spacing))):
         meshes = [fn(x) for x in frames]
-        rms, capped, large = [], [], []
+        rms, capped, large, shape, flicker = [], [], [], [], []
+        backward = None
         for k in range(len(frames) - 1):
-            p = meshes[k][0]
+            p, tris = meshes[k]
             keep = away_from_walls(p, tank, spacing)
             moved = _displaced(p[keep], frames[k], frames[k + 1], spacing)
-            d = distances(moved, meshes[k + 1]) / spacing
+            signed = signed_distances(moved, meshes[k + 1]) / spacing
+            d = np.abs(signed)
             rms.append(float(np.sqrt(np.mean(d ** 2))) if d.size else 0.0)
             capped.append(float(np.sqrt(np.mean(np.minimum(d, 1.0) ** 2))) if d.size else 0.0)
             large.append(float(np.mean(d > 0.5)) if d.size else 0.0)
+            shape.append(_beyond_uniform_offset(signed, tris, len(p), keep))
+            if k > 0:
+                back = signed_distances(_displaced(p[keep], frames[k], frames[k - 1], spacing),
+                                        meshes[k - 1]) / spacing
+                both = (d < 1.0) & (np.abs(back) < 1.0)
+                flicker.append(float(np.sqrt(np.mean((0.5 * (signed + back)[both]) ** 2)))
+                               if both.any() else 0.0)
         out[name] = {"rms_per_frame": rms, "rms_mean": float(np.mean(rms)),
+                     "rms_median": float(np.median(rms)),
                      "rms_capped_mean": float(np.mean(capped)),
-                     "fraction_above_half_spacing": float(np.mean(large))}
+                     "fraction_above_half_spacing": float(np.mean(large)),
+                     "beyond_uniform_offset_mean": float(np.mean(shape)),
+                     "flicker_per_frame": flicker, "flicker_mean": float(np.mean(flicker)),
+                     "flicker_median": float(np.median(flicker))}
         comps, cavs, hls = zip(*(holes(*m) for m in meshes))
         topology[name] = {"components": list(map(int, comps)), "cavities": list(map(int, cavs)),
                           "holes": list(map(int, hls))}
-        report(f"  in motion ({name}): unexplained RMS {np.mean(rms):.4f} spacings per frame, "
-               f"capped at 1 s {np.mean(capped):.4f}, above 0.5 s {np.mean(large):.4f}; "
+        report(f"  in motion ({name}): unexplained RMS {np.mean(rms):.4f} spacings per frame "
+               f"(median {np.median(rms):.4f}), capped at 1 s {np.mean(capped):.4f}, above 0.5 s "
+               f"{np.mean(large):.4f}, beyond a uniform offset per piece {np.mean(shape):.4f}, "
+               f"flicker {np.mean(flicker):.4f} (median {np.median(flicker):.4f}); "
                f"components {sum(comps)}, cavities {sum(cavs)}, holes {sum(hls)} over "
                f"{len(meshes)} frames")
     report(f"  particle clusters (link 2 s) summed over frames: "
            f"{sum(topology['particle_clusters'])}")
     return out, topology
+
+
+def _beyond_uniform_offset(signed, triangles, n_vertices, keep):
+    """RMS of the signed distances of the vertices ``keep`` once each closed piece's mean is
+    removed (what is left is the change of shape, not of size)."""
+    from filters.surface.correction import vertex_components
+
+    labels, k = vertex_components(triangles, n_vertices)
+    lab = labels[keep]
+    used = lab >= 0
+    if not used.any():
+        return 0.0
+    lab, s = lab[used], signed[used]
+    mean = np.bincount(lab, weights=s, minlength=k) / np.maximum(np.bincount(lab, minlength=k), 1)
+    return float(np.sqrt(np.mean((s - mean[lab]) ** 2)))
 
 
 def run_sheets(report, spacing=0.02):
