@@ -31,6 +31,9 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   ``flicker``, the RMS of half the sum of a vertex's forward and backward unexplained
   displacements (to the next and to the previous frame's surface, both within a spacing): a
   steady drift cancels in it, a surface that jumps out and back for one frame does not.
+  Beside them, ``scene_across_5_frames``: the scene's surfaces filtered across frames k-2 ..
+  k+2 (:func:`filters.surface.temporal.smooth_across_frames`, weights 1, 2, 3, 2, 1 over 9;
+  not what the scenes write: a run would have to write each surface two frames late).
 * ``thin_features``: jittered single and double particle layers (16 x 16 particles, in-plane
   spacing 1.0-1.8 s, layers s apart): components, cavities (closed bubbles inside) and holes
   (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every
@@ -347,9 +350,16 @@ def run_motion(report, *settings):
     out = {"scene": "drop", "settings": list(settings), "frames": int(len(frames)),
            "particles": int(frames.shape[1]), "spacing_m": spacing}
     topology = {"particle_clusters": [clusters(x, 2.0 * spacing) for x in frames]}
-    for name, fn in (("scene", lambda x: scene_surface(x, spacing, tank)),
-                     ("splashsurf", lambda x: splashsurf_surface(x, spacing))):
-        meshes = [fn(x) for x in frames]
+    scene_meshes = [scene_surface(x, spacing, tank) for x in frames]
+    for name, make in (("scene", lambda: scene_meshes),
+                       ("splashsurf", lambda: [splashsurf_surface(x, spacing) for x in frames]),
+                       ("scene_across_5_frames",
+                        lambda: across_frames(scene_meshes, frames, spacing, tank))):
+        t0 = time.perf_counter()
+        meshes = make()
+        if name == "scene_across_5_frames":
+            # the filter alone (the scene's surfaces were made above), Numba compiled or cached
+            out["across_5_frames_wall_s_per_frame"] = (time.perf_counter() - t0) / len(meshes)
         rms, capped, large, shape, flicker = [], [], [], [], []
         backward = None
         for k in range(len(frames) - 1):
@@ -387,6 +397,31 @@ def run_motion(report, *settings):
     report(f"  particle clusters (link 2 s) summed over frames: "
            f"{sum(topology['particle_clusters'])}")
     return out, topology
+
+
+#: Weights of frames k-2 .. k+2 in :func:`across_frames`.
+ACROSS_FRAMES = {-2: 1 / 9, -1: 2 / 9, 0: 3 / 9, 1: 2 / 9, 2: 1 / 9}
+
+
+def across_frames(meshes, frames, spacing, tank):
+    """The scene's surfaces filtered across five frames (:func:`filters.surface.temporal.
+    smooth_across_frames`, weights :data:`ACROSS_FRAMES`, reach half a spacing, the other
+    frames' surfaces reached by moving the vertices with the particles), kept in the tank."""
+    from filters.surface.temporal import smooth_across_frames, vertex_normals
+
+    lo, hi = (np.asarray(v, np.float64) for v in tank)
+    out = []
+    for k, (points, tris) in enumerate(meshes):
+        others, weights = [], [ACROSS_FRAMES[0]]
+        for j, w in ACROSS_FRAMES.items():
+            if j and 0 <= k + j < len(meshes):
+                others.append((_displaced(points, frames[k], frames[k + j], spacing),
+                               *meshes[k + j]))
+                weights.append(w)
+        moved = smooth_across_frames(points, vertex_normals(points, tris), others, weights,
+                                     0.5 * spacing)
+        out.append((np.clip(moved, lo, hi), tris))
+    return out
 
 
 def _beyond_uniform_offset(signed, triangles, n_vertices, keep):

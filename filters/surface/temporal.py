@@ -1,0 +1,278 @@
+"""Offsets between surfaces along vertex normals, and surfaces smoothed across frames.
+
+A liquid surface reconstructed frame by frame moves, between two frames, by what the liquid's
+motion explains plus what the reconstruction adds (flattening, volume correction, sampling).
+The second part can be averaged over neighbouring frames once every surface is carried to
+the same instant by the liquid's motion: for a vertex ``v`` of frame ``k`` with normal ``n``,
+let ``v_j`` be ``v`` moved with the particles to frame ``k + j`` and ``t_j`` the signed distance
+along ``n`` from ``v_j`` to frame ``k + j``'s surface; the smoothed vertex is
+
+    ``v + n * sum_j w_j t_j / sum_j w_j``  (``t_0 = 0``; terms with no crossing within
+    ``reach`` left out: a drop merging or splitting is not smeared over frames).
+
+This is the motion-compensated temporal filter of a level set (the surfaces' zero sets
+averaged along the flow; e.g. Bhattacharya, Gao & Bargteil 2011 smooth a particle level set
+in time), applied to a mesh: the topology of frame ``k`` is kept and each vertex moves along
+its own normal only. Static surfaces are left where they are (every ``t_j`` is zero), and a
+rigid motion that the displacements describe leaves them unchanged too.
+
+:func:`normal_offsets` does the search: every triangle of the other surface is listed in the
+cells of a uniform grid (cells ``2 reach`` wide) that its bounding box overlaps, and every
+point casts its segment ``v + t n, |t| <= reach`` against the triangles of the cells the
+segment's box overlaps (Möller & Trumbore 1997), keeping the crossing of least ``|t|``;
+points are independent (parallel, no races).
+Measurements behind it: ``benchmarks/results/splash_motion_notes.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..binning import MAX_CELLS
+from ..elastic.topology import check_triangles
+from ..validation import check_points, check_range
+
+__all__ = ["normal_offsets", "smooth_across_frames", "vertex_normals"]
+
+#: Barycentric slack of a crossing (relative): a line through an edge shared by two triangles
+#: finds one of them rather than slipping between them.
+EDGE_SLACK = 1e-9
+
+
+@njit(cache=True)
+def _bin_triangles(V, T, origin, cell, dims):
+    """Every triangle listed in each cell its bounding box overlaps (CSR: ``start``, ``items``).
+
+    Triangles are binned by their boxes, not their centroids: the cut faces on a tank's walls
+    are a few large fans, and a centroid grid would need cells as wide as they are."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    count = np.zeros(nx * ny * nz + 1, np.int64)
+    for f in range(T.shape[0]):
+        lo0, hi0 = _cell_range(V, T, f, 0, origin, cell, nx)
+        lo1, hi1 = _cell_range(V, T, f, 1, origin, cell, ny)
+        lo2, hi2 = _cell_range(V, T, f, 2, origin, cell, nz)
+        for z in range(lo2, hi2 + 1):
+            for y in range(lo1, hi1 + 1):
+                for x in range(lo0, hi0 + 1):
+                    count[(z * ny + y) * nx + x + 1] += 1
+    for c in range(nx * ny * nz):
+        count[c + 1] += count[c]
+    fill = count[:-1].copy()
+    items = np.empty(count[-1], np.int64)
+    for f in range(T.shape[0]):
+        lo0, hi0 = _cell_range(V, T, f, 0, origin, cell, nx)
+        lo1, hi1 = _cell_range(V, T, f, 1, origin, cell, ny)
+        lo2, hi2 = _cell_range(V, T, f, 2, origin, cell, nz)
+        for z in range(lo2, hi2 + 1):
+            for y in range(lo1, hi1 + 1):
+                for x in range(lo0, hi0 + 1):
+                    c = (z * ny + y) * nx + x
+                    items[fill[c]] = f
+                    fill[c] += 1
+    return count, items
+
+
+@njit(cache=True, inline="always")
+def _cell_range(V, T, f, axis, origin, cell, n):
+    a = min(V[T[f, 0], axis], V[T[f, 1], axis], V[T[f, 2], axis])
+    b = max(V[T[f, 0], axis], V[T[f, 1], axis], V[T[f, 2], axis])
+    lo = int(min(max(math.floor((a - origin[axis]) / cell), 0.0), n - 1.0))
+    hi = int(min(max(math.floor((b - origin[axis]) / cell), 0.0), n - 1.0))
+    return lo, hi
+
+
+@njit(parallel=True, cache=True)
+def _offsets(p, d, start, items, origin, cell, dims, V, T, reach, out):
+    n = (dims[0], dims[1], dims[2])
+    for i in prange(p.shape[0]):
+        # the cells the segment p + t d, |t| <= reach, can touch (its bounding box)
+        lo = np.empty(3, np.int64)
+        hi = np.empty(3, np.int64)
+        outside = False
+        for axis in range(3):
+            a = (p[i, axis] - reach * abs(d[i, axis]) - origin[axis]) / cell
+            b = (p[i, axis] + reach * abs(d[i, axis]) - origin[axis]) / cell
+            if b < 0.0 or a >= n[axis]:
+                outside = True
+            lo[axis] = int(max(math.floor(a), 0.0))
+            hi[axis] = int(min(math.floor(b), n[axis] - 1.0))
+        best = np.nan
+        best_abs = math.inf
+        if not outside:
+            for z in range(lo[2], hi[2] + 1):
+                for y in range(lo[1], hi[1] + 1):
+                    for x in range(lo[0], hi[0] + 1):
+                        c = (z * n[1] + y) * n[0] + x
+                        for k in range(start[c], start[c + 1]):
+                            t = _crossing(p, d, i, V, T, items[k])
+                            if abs(t) <= reach and abs(t) < best_abs:
+                                best_abs = abs(t)
+                                best = t
+        out[i] = best
+
+
+@njit(cache=True, inline="always")
+def _crossing(p, d, i, V, T, f):
+    """``t`` where the line ``p[i] + t d[i]`` crosses triangle ``f`` (Möller & Trumbore 1997,
+    both sides), or infinity."""
+    a = T[f, 0]
+    e1x = V[T[f, 1], 0] - V[a, 0]
+    e1y = V[T[f, 1], 1] - V[a, 1]
+    e1z = V[T[f, 1], 2] - V[a, 2]
+    e2x = V[T[f, 2], 0] - V[a, 0]
+    e2y = V[T[f, 2], 1] - V[a, 1]
+    e2z = V[T[f, 2], 2] - V[a, 2]
+    qx = d[i, 1] * e2z - d[i, 2] * e2y
+    qy = d[i, 2] * e2x - d[i, 0] * e2z
+    qz = d[i, 0] * e2y - d[i, 1] * e2x
+    det = e1x * qx + e1y * qy + e1z * qz
+    if det == 0.0:
+        return math.inf
+    inv = 1.0 / det
+    sx = p[i, 0] - V[a, 0]
+    sy = p[i, 1] - V[a, 1]
+    sz = p[i, 2] - V[a, 2]
+    u = (sx * qx + sy * qy + sz * qz) * inv
+    if u < -EDGE_SLACK or u > 1.0 + EDGE_SLACK:
+        return math.inf
+    rx = sy * e1z - sz * e1y
+    ry = sz * e1x - sx * e1z
+    rz = sx * e1y - sy * e1x
+    v = (d[i, 0] * rx + d[i, 1] * ry + d[i, 2] * rz) * inv
+    if v < -EDGE_SLACK or u + v > 1.0 + EDGE_SLACK:
+        return math.inf
+    return (e2x * rx + e2y * ry + e2z * rz) * inv
+
+
+def normal_offsets(points, directions, vertices, triangles, reach: float):
+    """Signed distance along ``directions`` from every point to a triangle mesh, within ``reach``.
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+        Line origins (m).
+    directions : (P, 3) float64
+        Unit directions (e.g. vertex normals); the distances are in units of their length.
+    vertices : (V, 3) float64
+        The other mesh's vertices (m).
+    triangles : (T, 3) int
+        The other mesh's triangles.
+    reach : float
+        Largest ``|t|`` searched (m), > 0.
+
+    Returns
+    -------
+    (P,) float64
+        ``t`` of the crossing ``points + t directions`` of least ``|t|`` (positive along the
+        direction), NaN where the line crosses no triangle within ``reach``.
+
+    Raises
+    ------
+    ValueError
+        For points or directions of different shapes, non-finite values, triangles that do not
+        index the vertices, or ``reach <= 0``.
+    """
+    p = check_points("points", points)
+    d = check_points("directions", directions)
+    if d.shape != p.shape:
+        raise ValueError(f"directions must have the shape of points {p.shape}, got {d.shape}")
+    V = check_points("vertices", vertices)
+    T = np.ascontiguousarray(check_triangles("triangles", triangles, V.shape[0],
+                                             allow_empty=True, allow_degenerate=True),
+                             dtype=np.int64)
+    reach = check_range("reach", reach, 0.0, math.inf, low_inclusive=False)
+    out = np.full(p.shape[0], np.nan)
+    if p.shape[0] == 0 or T.shape[0] == 0:
+        return out
+    # cells twice as wide as the search (a segment's box overlaps at most 2 x 2 x 2 of them),
+    # wider where that would make more than MAX_CELLS
+    lo = V.min(axis=0) - reach
+    size = V.max(axis=0) + reach - lo
+    cell = 2.0 * reach
+    while np.prod(np.floor(size / cell) + 1.0) > MAX_CELLS:
+        cell *= 1.5
+    dims = (np.floor(size / cell) + 1.0).astype(np.int64)
+    start, items = _bin_triangles(V, T, lo, cell, dims)
+    _offsets(p, d, start, items, lo, cell, dims, V, T, reach, out)
+    return out
+
+
+def smooth_across_frames(points, normals, others, weights, reach: float):
+    """Vertices of one frame's surface moved along their normals toward neighbouring frames'.
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+        Vertices of frame ``k``'s surface (m).
+    normals : (P, 3) float64
+        Their unit normals.
+    others : sequence of ((P, 3) float64, (V, 3) float64, (T, 3) int)
+        Per neighbouring frame ``k + j``: ``points`` moved with the liquid to that frame, and
+        that frame's surface (vertices, triangles).
+    weights : sequence of float
+        ``w_0`` (frame ``k`` itself) then one weight per entry of ``others``; all >= 0,
+        ``w_0 > 0``.
+    reach : float
+        Largest offset taken from a neighbour (m), > 0; farther crossings (a merge, a split, a
+        drop leaving) are left out and the remaining weights renormalised.
+
+    Returns
+    -------
+    (P, 3) float64
+        ``points + normals * sum_j w_j t_j / sum_j w_j`` over the frames with a crossing
+        (:func:`normal_offsets`; ``t_0 = 0``).
+    """
+    p = check_points("points", points)
+    n = check_points("normals", normals)
+    if n.shape != p.shape:
+        raise ValueError(f"normals must have the shape of points {p.shape}, got {n.shape}")
+    others = list(others)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    if w.size != len(others) + 1:
+        raise ValueError(f"weights must have {len(others) + 1} entries (frame k, then one per "
+                         f"neighbouring frame), got {w.size}")
+    if not (np.isfinite(w).all() and w.min() >= 0.0 and w[0] > 0.0):
+        raise ValueError(f"weights must be finite and >= 0, the first > 0, got {w.tolist()}")
+    total = np.full(p.shape[0], w[0])
+    shift = np.zeros(p.shape[0])
+    for (moved, vertices, triangles), wj in zip(others, w[1:]):
+        moved = check_points("others[j][0]", moved)
+        if moved.shape != p.shape:
+            raise ValueError(f"moved points must have the shape of points {p.shape}, got "
+                             f"{moved.shape}")
+        t = normal_offsets(moved, n, vertices, triangles, reach)
+        found = np.isfinite(t)
+        shift[found] += wj * t[found]
+        total[found] += wj
+    return p + (shift / total)[:, None] * n
+
+
+def vertex_normals(points, triangles):
+    """Area-weighted unit vertex normals of a triangle mesh (outward for an outward-oriented
+    closed mesh); a vertex of no triangle, or of triangles of zero area only, gets ``(0, 0,
+    0)`` (it then does not move in :func:`smooth_across_frames`).
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+        Vertices (m).
+    triangles : (T, 3) int
+        Vertex indices.
+
+    Returns
+    -------
+    (P, 3) float64
+    """
+    p = check_points("points", points)
+    t = check_triangles("triangles", triangles, p.shape[0], allow_empty=True,
+                        allow_degenerate=True)
+    face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+    n = np.zeros_like(p)
+    for corner in range(3):
+        for axis in range(3):
+            n[:, axis] += np.bincount(t[:, corner], weights=face[:, axis], minlength=p.shape[0])
+    length = np.linalg.norm(n, axis=1)
+    return np.divide(n, length[:, None], out=np.zeros_like(n), where=length[:, None] > 0.0)
