@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..binning import MAX_CELLS
+from ..binning import MAX_CELLS, counting_sort
 from ..elastic.topology import check_triangles
 from ..validation import check_points, check_range
 
@@ -43,36 +43,31 @@ EDGE_SLACK = 1e-9
 
 
 @njit(cache=True)
-def _bin_triangles(V, T, origin, cell, dims):
-    """Every triangle listed in each cell its bounding box overlaps (CSR: ``start``, ``items``).
+def _triangle_cells(V, T, origin, cell, dims):
+    """Every (cell, triangle) pair of a triangle and a cell its bounding box overlaps.
 
     Triangles are binned by their boxes, not their centroids: the cut faces on a tank's walls
     are a few large fans, and a centroid grid would need cells as wide as they are."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    count = np.zeros(nx * ny * nz + 1, np.int64)
+    nx, ny = dims[0], dims[1]
+    box = np.empty((T.shape[0], 6), np.int64)
+    total = 0
     for f in range(T.shape[0]):
-        lo0, hi0 = _cell_range(V, T, f, 0, origin, cell, nx)
-        lo1, hi1 = _cell_range(V, T, f, 1, origin, cell, ny)
-        lo2, hi2 = _cell_range(V, T, f, 2, origin, cell, nz)
-        for z in range(lo2, hi2 + 1):
-            for y in range(lo1, hi1 + 1):
-                for x in range(lo0, hi0 + 1):
-                    count[(z * ny + y) * nx + x + 1] += 1
-    for c in range(nx * ny * nz):
-        count[c + 1] += count[c]
-    fill = count[:-1].copy()
-    items = np.empty(count[-1], np.int64)
+        for axis in range(3):
+            box[f, 2 * axis], box[f, 2 * axis + 1] = _cell_range(V, T, f, axis, origin, cell,
+                                                                 dims[axis])
+        total += ((box[f, 1] - box[f, 0] + 1) * (box[f, 3] - box[f, 2] + 1)
+                  * (box[f, 5] - box[f, 4] + 1))
+    keys = np.empty(total, np.int64)
+    owner = np.empty(total, np.int64)
+    k = 0
     for f in range(T.shape[0]):
-        lo0, hi0 = _cell_range(V, T, f, 0, origin, cell, nx)
-        lo1, hi1 = _cell_range(V, T, f, 1, origin, cell, ny)
-        lo2, hi2 = _cell_range(V, T, f, 2, origin, cell, nz)
-        for z in range(lo2, hi2 + 1):
-            for y in range(lo1, hi1 + 1):
-                for x in range(lo0, hi0 + 1):
-                    c = (z * ny + y) * nx + x
-                    items[fill[c]] = f
-                    fill[c] += 1
-    return count, items
+        for z in range(box[f, 4], box[f, 5] + 1):
+            for y in range(box[f, 2], box[f, 3] + 1):
+                for x in range(box[f, 0], box[f, 1] + 1):
+                    keys[k] = (z * ny + y) * nx + x
+                    owner[k] = f
+                    k += 1
+    return keys, owner
 
 
 @njit(cache=True, inline="always")
@@ -195,7 +190,9 @@ def normal_offsets(points, directions, vertices, triangles, reach: float):
     while np.prod(np.floor(size / cell) + 1.0) > MAX_CELLS:
         cell *= 1.5
     dims = (np.floor(size / cell) + 1.0).astype(np.int64)
-    start, items = _bin_triangles(V, T, lo, cell, dims)
+    keys, owner = _triangle_cells(V, T, lo, cell, dims)
+    start, order = counting_sort(keys, int(np.prod(dims)), 1)
+    items = owner[order]
     _offsets(p, d, start, items, lo, cell, dims, V, T, reach, out)
     return out
 
