@@ -113,6 +113,10 @@ def _build_parser() -> argparse.ArgumentParser:
     p_surface.add_argument("--option", dest="options", action="append", default=[],
                            metavar="NAME=VALUE", help="further surface option (repeatable), as "
                                                       "in pipeline.surface.surface_stages")
+    p_surface.add_argument("--across-frames", type=int, default=0, metavar="K",
+                           help="smooth every frame's surface with those of the K frames on each "
+                                "side, the particles followed by id (0 to 10; default 0: each "
+                                "frame alone; 2 for movies)")
     p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
     p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_cluster_options(p_surface)
@@ -218,6 +222,8 @@ def _cmd_surface(args) -> int:
     if any(p.parent == (out / args.name).resolve() for p in inputs):
         raise UsageError(f"--out {out} with --name {args.name} would overwrite the input frames; "
                          f"choose another --out or --name")
+    if not 0 <= args.across_frames <= 10:
+        raise UsageError(f"--across-frames must be in [0, 10], got {args.across_frames}")
     options = _surface_options(args, source)
     try:
         from .surface import surface_stages
@@ -230,7 +236,8 @@ def _cmd_surface(args) -> int:
     client = _client(args)
     try:
         result = surface_series(args.particles, target, client=client,
-                                resume=args.resume, progress=not args.quiet, **options)
+                                resume=args.resume, progress=not args.quiet,
+                                across_frames=args.across_frames, **options)
     except FramesError as exc:
         print(f"blobflow: {exc}", file=sys.stderr)
         print(f"blobflow: the frames that succeeded are in {out}; rerun with --resume",

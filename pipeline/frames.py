@@ -28,6 +28,8 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
+from filters.validation import check_int
+
 from .series import SeriesWriter, read_collection, read_frame, write_frame
 
 __all__ = [
@@ -38,6 +40,7 @@ __all__ = [
     "run_tasks",
     "surface_series",
     "surface_frame",
+    "frame_done",
     "connect",
     "SchedulerError",
 ]
@@ -92,7 +95,8 @@ def _peak_rss() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
-def _frame_done(path: Path) -> bool:
+def frame_done(path: Path) -> bool:
+    """Whether ``path`` is a frame on disk that reads back (else it is to be computed)."""
     if not path.is_file():
         return False
     try:
@@ -290,7 +294,7 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
         out_rel = f"{name}/{name}_{i:06d}{extension}"
         out_file = output_path.parent / out_rel
         done_entries.append((t, out_rel))
-        if resume and _frame_done(out_file):
+        if resume and frame_done(out_file):
             result.skipped += 1
             continue
         jobs.append((i, t, str(input_path.parent / rel), str(out_file)))
@@ -330,15 +334,28 @@ def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> No
 
 
 def surface_series(particles_path, output_path, *, client=None, resume: bool = False,
-                   progress: bool = True, **surface_options) -> FramesResult:
+                   progress: bool = True, across_frames: int = 0,
+                   **surface_options) -> FramesResult:
     """Reconstruct the surface of every frame of a particle series.
 
     ``surface_options`` are those of :func:`pipeline.surface.surface_stages` (``radius``,
     ``cell_size``, ``kernel``, ``smooth_iterations``, ...).  See :func:`map_frames` for
-    ``client`` and ``resume``.
+    ``client`` and ``resume``. ``across_frames`` ``K`` in [0, 10]: with ``K > 0`` every
+    frame's surface is then smoothed with those of the ``K`` frames on each side
+    (:mod:`pipeline.across_frames`; the particles need an ``id`` array).
     """
     from .surface import surface_stages
 
+    across_frames = check_int("across_frames", across_frames, 0, 10)
     surface_stages(**surface_options)  # validate the options here, before any task runs
+    if across_frames:
+        from .across_frames import smooth_series_across_frames
+
+        def single(source, target, **kwargs):
+            return map_frames(source, target, surface_frame, surface_options, **kwargs)
+
+        return smooth_series_across_frames(particles_path, output_path, across_frames,
+                                           surface_options, single=single, client=client,
+                                           resume=resume, progress=progress)
     return map_frames(particles_path, output_path, surface_frame, surface_options, client=client,
                       resume=resume, progress=progress)

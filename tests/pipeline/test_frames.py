@@ -59,6 +59,15 @@ def test_surface_series_parallel_matches_serial(particles, client, tmp_path):
     assert len(times) == 8 and all(m.n_cells > 0 for m in meshes)
 
 
+def test_surfaces_across_frames_parallel_match_serial(particles, client, tmp_path):
+    options = dict(radius=0.08, smooth_iterations=5, across_frames=1)
+    surface_series(particles, tmp_path / "a" / "surface.pvd", progress=False, **options)
+    surface_series(particles, tmp_path / "b" / "surface.pvd", client=client, progress=False,
+                   **options)
+    assert _files(tmp_path / "a") == _files(tmp_path / "b")
+    assert len(read_series(tmp_path / "b" / "surface.pvd")[0]) == 8
+
+
 def test_killed_worker_run_still_completes_correctly(particles, client, tmp_path):
     options = {"scale": 1.0, "victim": 4, "marker": str(tmp_path / "killed")}
     map_frames(particles, tmp_path / "ok" / "lift.pvd", _frame_tasks.lift_task, {"scale": 1.0},
