@@ -56,7 +56,9 @@ def _particles_by_id(path):
 
 def _mesh(path):
     data = vtkPolyData.SafeDownCast(read_frame(path))
-    if data is None or data.GetNumberOfPoints() == 0:
+    if data is None:
+        raise TypeError(f"{path}: a surface frame must be polygonal data (vtkPolyData)")
+    if data.GetNumberOfPoints() == 0:
         return data, np.zeros((0, 3)), np.zeros((0, 3), np.int64)
     points = numpy_support.vtk_to_numpy(data.GetPoints().GetData()).astype(np.float64)
     tris = numpy_support.vtk_to_numpy(data.GetPolys().GetConnectivityArray()).reshape(-1, 3)
@@ -90,6 +92,8 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
             o = sorter[np.minimum(np.searchsorted(other_ids, ids, sorter=sorter),
                                   len(other_ids) - 1)]
             both = other_ids[o] == ids
+            if not both.any():
+                continue  # no particle in common: nothing tells where the surface went
             moved = points + interpolate_attributes(
                 points, x[both], radius, y[o[both]] - x[both], cell_size=options["cell_size"])
             _, vertices, triangles = _mesh(surfaces[k + j])
