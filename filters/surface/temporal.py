@@ -41,6 +41,9 @@ __all__ = ["normal_offsets", "smooth_across_frames", "vertex_normals"]
 #: finds one of them rather than slipping between them.
 EDGE_SLACK = 1e-9
 
+#: Cell width of the triangle grid over the search reach.
+CELL_OVER_REACH = 2.0
+
 
 @njit(cache=True)
 def _triangle_cells(V, T, origin, cell, dims):
@@ -79,33 +82,35 @@ def _cell_range(V, T, f, axis, origin, cell, n):
     return lo, hi
 
 
+@njit(cache=True, inline="always")
+def _cells_along(p, d, i, axis, reach, origin, cell, n):
+    """The cells along ``axis`` that the segment ``p[i] + t d[i]``, ``|t| <= reach``, touches
+    (an empty range when it misses the grid)."""
+    a = (p[i, axis] - reach * abs(d[i, axis]) - origin[axis]) / cell
+    b = (p[i, axis] + reach * abs(d[i, axis]) - origin[axis]) / cell
+    if b < 0.0 or a >= n:
+        return 0, -1
+    return int(max(math.floor(a), 0.0)), int(min(math.floor(b), n - 1.0))
+
+
 @njit(parallel=True, cache=True)
 def _offsets(p, d, start, items, origin, cell, dims, V, T, reach, out):
-    n = (dims[0], dims[1], dims[2])
+    nx, ny, nz = dims[0], dims[1], dims[2]
     for i in prange(p.shape[0]):
-        # the cells the segment p + t d, |t| <= reach, can touch (its bounding box)
-        lo = np.empty(3, np.int64)
-        hi = np.empty(3, np.int64)
-        outside = False
-        for axis in range(3):
-            a = (p[i, axis] - reach * abs(d[i, axis]) - origin[axis]) / cell
-            b = (p[i, axis] + reach * abs(d[i, axis]) - origin[axis]) / cell
-            if b < 0.0 or a >= n[axis]:
-                outside = True
-            lo[axis] = int(max(math.floor(a), 0.0))
-            hi[axis] = int(min(math.floor(b), n[axis] - 1.0))
+        x0, x1 = _cells_along(p, d, i, 0, reach, origin, cell, nx)
+        y0, y1 = _cells_along(p, d, i, 1, reach, origin, cell, ny)
+        z0, z1 = _cells_along(p, d, i, 2, reach, origin, cell, nz)
         best = np.nan
         best_abs = math.inf
-        if not outside:
-            for z in range(lo[2], hi[2] + 1):
-                for y in range(lo[1], hi[1] + 1):
-                    for x in range(lo[0], hi[0] + 1):
-                        c = (z * n[1] + y) * n[0] + x
-                        for k in range(start[c], start[c + 1]):
-                            t = _crossing(p, d, i, V, T, items[k])
-                            if abs(t) <= reach and abs(t) < best_abs:
-                                best_abs = abs(t)
-                                best = t
+        for z in range(z0, z1 + 1):
+            for y in range(y0, y1 + 1):
+                for x in range(x0, x1 + 1):
+                    c = (z * ny + y) * nx + x
+                    for k in range(start[c], start[c + 1]):
+                        t = _crossing(p, d, i, V, T, items[k])
+                        if abs(t) <= reach and abs(t) < best_abs:
+                            best_abs = abs(t)
+                            best = t
         out[i] = best
 
 
@@ -186,7 +191,7 @@ def normal_offsets(points, directions, vertices, triangles, reach: float):
     # wider where that would make more than MAX_CELLS
     lo = V.min(axis=0) - reach
     size = V.max(axis=0) + reach - lo
-    cell = 2.0 * reach
+    cell = CELL_OVER_REACH * reach
     while np.prod(np.floor(size / cell) + 1.0) > MAX_CELLS:
         cell *= 1.5
     dims = (np.floor(size / cell) + 1.0).astype(np.int64)
