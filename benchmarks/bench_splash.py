@@ -32,8 +32,9 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   displacements (to the next and to the previous frame's surface, both within a spacing): a
   steady drift cancels in it, a surface that jumps out and back for one frame does not.
   Beside them, ``scene_across_5_frames``: the scene's surfaces filtered across frames k-2 ..
-  k+2 (:func:`filters.surface.temporal.smooth_across_frames`, weights 1, 2, 3, 2, 1 over 9;
-  not what the scenes write: a run would have to write each surface two frames late).
+  k+2 (:func:`filters.surface.temporal.smooth_across_frames`, weights 1, 2, 3, 2, 1 over 9, as
+  ``blobflow surface --across-frames 2`` writes them; not what the scenes write), and the same
+  two with 10 sweeps of feature smoothing instead of 25 (``scene_feature_smoothing_10...``).
 * ``thin_features``: jittered single and double particle layers (16 x 16 particles, in-plane
   spacing 1.0-1.8 s, layers s apart): components, cavities (closed bubbles inside) and holes
   (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every
@@ -351,10 +352,16 @@ def run_motion(report, *settings):
            "particles": int(frames.shape[1]), "spacing_m": spacing}
     topology = {"particle_clusters": [clusters(x, 2.0 * spacing) for x in frames]}
     scene_meshes = [scene_surface(x, spacing, tank) for x in frames]
+    fs10 = []
     for name, make in (("scene", lambda: scene_meshes),
                        ("splashsurf", lambda: [splashsurf_surface(x, spacing) for x in frames]),
                        ("scene_across_5_frames",
-                        lambda: across_frames(scene_meshes, frames, spacing, tank))):
+                        lambda: across_frames(scene_meshes, frames, spacing, tank)),
+                       ("scene_feature_smoothing_10",
+                        lambda: fs10.extend(scene_surface(x, spacing, tank, feature_smoothing=10)
+                                            for x in frames) or fs10),
+                       ("scene_feature_smoothing_10_across_5_frames",
+                        lambda: across_frames(fs10, frames, spacing, tank))):
         t0 = time.perf_counter()
         meshes = make()
         if name == "scene_across_5_frames":
@@ -406,8 +413,10 @@ ACROSS_FRAMES = {-2: 1 / 9, -1: 2 / 9, 0: 3 / 9, 1: 2 / 9, 2: 1 / 9}
 def across_frames(meshes, frames, spacing, tank):
     """The scene's surfaces filtered across five frames (:func:`filters.surface.temporal.
     smooth_across_frames`, weights :data:`ACROSS_FRAMES`, reach half a spacing, the other
-    frames' surfaces reached by moving the vertices with the particles), kept in the tank."""
-    from filters.surface.temporal import smooth_across_frames, vertex_normals
+    frames' surfaces reached by moving the vertices with the particles, the vertices on the
+    tank's walls held), kept in the tank: what ``blobflow surface --across-frames 2`` writes."""
+    from filters.surface.clip import wall_constraints
+    from filters.surface.temporal import smooth_across_frames
 
     lo, hi = (np.asarray(v, np.float64) for v in tank)
     out = []
@@ -418,8 +427,8 @@ def across_frames(meshes, frames, spacing, tank):
                 others.append((_displaced(points, frames[k], frames[k + j], spacing),
                                *meshes[k + j]))
                 weights.append(w)
-        moved = smooth_across_frames(points, vertex_normals(points, tris), others, weights,
-                                     0.5 * spacing)
+        fixed = wall_constraints(points, tris, lo, hi)[0].min(axis=1) < 1.0
+        moved = smooth_across_frames(points, tris, others, weights, 0.5 * spacing, fixed=fixed)
         out.append((np.clip(moved, lo, hi), tris))
     return out
 

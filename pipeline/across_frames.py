@@ -5,7 +5,8 @@ resume: the surface of every frame alone (a hidden series beside the output, rem
 output is complete), then every frame's surface filtered with those of the ``K`` frames on
 each side (:func:`filters.surface.temporal.smooth_across_frames`, triangular weights ``K + 1 -
 |j|``): each vertex is moved with the particles (matched by their ``id``) to the other frames,
-and along its normal toward the weighted mean of their surfaces. A frame's result depends on
+and along its normal toward the weighted mean of their surfaces (the offsets smoothed over
+the mesh; the vertices on the tank's walls stay). A frame's result depends on
 the particles of frames ``k - K .. k + K`` only, so a resumed or distributed run writes the
 same frames as a serial one. Measured in ``benchmarks/results/splash_motion_notes.md``: on
 the ``drop`` scene, five frames bring the surface motion the particles do not explain from
@@ -24,6 +25,7 @@ from vtkmodules.vtkCommonDataModel import vtkPointSet, vtkPolyData
 
 from filters.geometry import Box
 from filters.surface.attributes import interpolate_attributes
+from filters.surface.clip import wall_constraints
 from filters.surface.temporal import smooth_across_frames, vertex_normals
 from filters.validation import check_int
 
@@ -99,8 +101,12 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
             _, vertices, triangles = _mesh(surfaces[k + j])
             others.append((moved, vertices, triangles))
             weights.append(w[K + j])
-        smoothed = smooth_across_frames(points, vertex_normals(points, tris), others, weights,
-                                        REACH_R * radius)
+        fixed = None
+        if options["box"] is not None:
+            # the faces cut at the tank's walls stay on them
+            fixed = wall_constraints(points, tris, *options["box"])[0].min(axis=1) < 1.0
+        smoothed = smooth_across_frames(points, tris, others, weights, REACH_R * radius,
+                                        fixed=fixed)
         if options["box"] is not None:
             smoothed = np.clip(smoothed, *options["box"])
         dtype = numpy_support.vtk_to_numpy(data.GetPoints().GetData()).dtype

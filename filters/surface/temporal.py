@@ -7,8 +7,12 @@ the same instant by the liquid's motion: for a vertex ``v`` of frame ``k`` with 
 let ``v_j`` be ``v`` moved with the particles to frame ``k + j`` and ``t_j`` the signed distance
 along ``n`` from ``v_j`` to frame ``k + j``'s surface; the smoothed vertex is
 
-    ``v + n * sum_j w_j t_j / sum_j w_j``  (``t_0 = 0``; terms with no crossing within
-    ``reach`` left out: a drop merging or splitting is not smeared over frames).
+    ``v + n * o``, ``o = sum_j w_j t_j / sum_j w_j``  (``t_0 = 0``; terms with no crossing
+    within ``reach`` left out: a drop merging or splitting is not smeared over frames),
+
+with the offsets ``o`` smoothed over the mesh first (a few averaging sweeps over each vertex's
+edge neighbours): the particles' displacements vary from particle to particle, and offsets
+taken vertex by vertex would print that noise on the surface.
 
 This is the motion-compensated temporal filter of a level set (the surfaces' zero sets
 averaged along the flow; e.g. Bhattacharya, Gao & Bargteil 2011 smooth a particle level set
@@ -33,7 +37,8 @@ from numba import njit, prange
 
 from ..binning import MAX_CELLS, counting_sort
 from ..elastic.topology import check_triangles
-from ..validation import check_points, check_range
+from ..validation import check_int, check_points, check_range
+from .smoothing import vertex_neighbors
 
 __all__ = ["normal_offsets", "smooth_across_frames", "vertex_normals"]
 
@@ -202,15 +207,16 @@ def normal_offsets(points, directions, vertices, triangles, reach: float):
     return out
 
 
-def smooth_across_frames(points, normals, others, weights, reach: float):
+def smooth_across_frames(points, triangles, others, weights, reach: float, *, normals=None,
+                         sweeps: int = 10, fixed=None):
     """Vertices of one frame's surface moved along their normals toward neighbouring frames'.
 
     Parameters
     ----------
     points : (P, 3) float64
         Vertices of frame ``k``'s surface (m).
-    normals : (P, 3) float64
-        Their unit normals.
+    triangles : (T, 3) int
+        Its triangles.
     others : sequence of ((P, 3) float64, (V, 3) float64, (T, 3) int)
         Per neighbouring frame ``k + j``: ``points`` moved with the liquid to that frame, and
         that frame's surface (vertices, triangles).
@@ -220,17 +226,34 @@ def smooth_across_frames(points, normals, others, weights, reach: float):
     reach : float
         Largest offset taken from a neighbour (m), > 0; farther crossings (a merge, a split, a
         drop leaving) are left out and the remaining weights renormalised.
+    normals : (P, 3) float64, optional
+        Unit vertex normals; default :func:`vertex_normals`.
+    sweeps : int
+        Sweeps of smoothing of the offsets over the mesh, in [0, 1000], each ``o <- (o + mean
+        of the edge neighbours' o) / 2``: the particles' displacements vary from particle to
+        particle, and offsets taken vertex by vertex would print that noise on the surface
+        (without them the ``drop`` scene's surface looks crumpled; see
+        ``benchmarks/results/splash_motion_notes.md``).
+    fixed : (P,) bool, optional
+        Vertices that do not move (e.g. those on a tank's walls); their offsets are held at
+        zero through the sweeps.
 
     Returns
     -------
     (P, 3) float64
-        ``points + normals * sum_j w_j t_j / sum_j w_j`` over the frames with a crossing
-        (:func:`normal_offsets`; ``t_0 = 0``).
+        ``points + normals * o``, ``o`` the smoothed ``sum_j w_j t_j / sum_j w_j`` over the
+        frames with a crossing (:func:`normal_offsets`; ``t_0 = 0``).
     """
     p = check_points("points", points)
-    n = check_points("normals", normals)
+    t = check_triangles("triangles", triangles, p.shape[0], allow_empty=True,
+                        allow_degenerate=True)
+    n = vertex_normals(p, t) if normals is None else check_points("normals", normals)
     if n.shape != p.shape:
         raise ValueError(f"normals must have the shape of points {p.shape}, got {n.shape}")
+    sweeps = check_int("sweeps", sweeps, 0, 1000)
+    hold = np.zeros(p.shape[0], bool) if fixed is None else np.asarray(fixed, bool)
+    if hold.shape != (p.shape[0],):
+        raise ValueError(f"fixed must have shape ({p.shape[0]},), got {hold.shape}")
     others = list(others)
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
     if w.size != len(others) + 1:
@@ -240,16 +263,38 @@ def smooth_across_frames(points, normals, others, weights, reach: float):
         raise ValueError(f"weights must be finite and >= 0, the first > 0, got {w.tolist()}")
     total = np.full(p.shape[0], w[0])
     shift = np.zeros(p.shape[0])
-    for (moved, vertices, triangles), wj in zip(others, w[1:]):
+    for (moved, vertices, other_triangles), wj in zip(others, w[1:]):
         moved = check_points("others[j][0]", moved)
         if moved.shape != p.shape:
             raise ValueError(f"moved points must have the shape of points {p.shape}, got "
                              f"{moved.shape}")
-        t = normal_offsets(moved, n, vertices, triangles, reach)
-        found = np.isfinite(t)
-        shift[found] += wj * t[found]
-        total[found] += wj
-    return p + (shift / total)[:, None] * n
+        found = normal_offsets(moved, n, vertices, other_triangles, reach)
+        ok = np.isfinite(found)
+        shift[ok] += wj * found[ok]
+        total[ok] += wj
+    offset = np.where(hold, 0.0, shift / total)
+    if sweeps and p.shape[0]:
+        starts, neighbors = vertex_neighbors(t, p.shape[0])
+        offset = _smooth_offsets(offset, starts, neighbors, hold, sweeps)
+    return p + offset[:, None] * n
+
+
+@njit(cache=True)
+def _smooth_offsets(offset, starts, neighbors, hold, sweeps):
+    a = offset.copy()
+    b = np.empty_like(a)
+    for _ in range(sweeps):
+        for v in range(a.shape[0]):
+            m = starts[v + 1] - starts[v]
+            if hold[v] or m == 0:
+                b[v] = a[v]
+                continue
+            s = 0.0
+            for k in range(starts[v], starts[v + 1]):
+                s += a[neighbors[k]]
+            b[v] = 0.5 * (a[v] + s / m)
+        a, b = b, a
+    return a
 
 
 def vertex_normals(points, triangles):

@@ -86,9 +86,9 @@ def test_large_triangles_are_found_from_anywhere_they_cover():
 def test_a_static_surface_is_left_where_it_is():
     v, t = uv_sphere(0.3, n=24)
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
-    out = smooth_across_frames(v, n, [(v, v, t), (v, v, t)], [0.5, 0.25, 0.25], 0.05)
+    out = smooth_across_frames(v, t, [(v, v, t), (v, v, t)], [0.5, 0.25, 0.25], 0.05, normals=n)
     np.testing.assert_allclose(out, v, atol=1e-12)
-    again = smooth_across_frames(v, n, [(v, v, t), (v, v, t)], [0.5, 0.25, 0.25], 0.05)
+    again = smooth_across_frames(v, t, [(v, v, t), (v, v, t)], [0.5, 0.25, 0.25], 0.05, normals=n)
     assert np.array_equal(out, again)
 
 
@@ -96,8 +96,8 @@ def test_a_rigid_motion_that_the_displacements_describe_changes_nothing():
     v, t = uv_sphere(0.3, n=24)
     n = v / np.linalg.norm(v, axis=1, keepdims=True)
     shift = np.array([0.013, -0.007, 0.021])
-    out = smooth_across_frames(v, n, [(v + shift, v + shift, t), (v - shift, v - shift, t)],
-                               [0.5, 0.25, 0.25], 0.05)
+    out = smooth_across_frames(v, t, [(v + shift, v + shift, t), (v - shift, v - shift, t)],
+                               [0.5, 0.25, 0.25], 0.05, normals=n)
     np.testing.assert_allclose(out, v, atol=1e-12)
 
 
@@ -107,12 +107,33 @@ def test_weights_average_the_neighbours_offsets_and_far_ones_are_left_out():
     up = np.tile([0.0, 0.0, 1.0], (len(v), 1))
     above, below, far = grid_plane(0.1)[0], grid_plane(-0.1)[0], grid_plane(0.3)[0]
     # symmetric neighbours cancel
-    out = smooth_across_frames(v, up, [(v, above, t), (v, below, t)], [0.5, 0.25, 0.25], 0.2)
+    out = smooth_across_frames(v, t, [(v, above, t), (v, below, t)], [0.5, 0.25, 0.25], 0.2,
+                               normals=up)
     np.testing.assert_allclose(out[inner, 2], 0.0, atol=1e-12)
-    # a neighbour beyond reach is left out and the weights renormalised: 0.25 * 0.1 / 0.75
-    out = smooth_across_frames(v, up, [(v, above, t), (v, far, t)], [0.5, 0.25, 0.25], 0.2)
+    # a neighbour beyond reach is left out and the weights renormalised: 0.25 * 0.1 / 0.75 (a
+    # uniform offset, which the sweeps over the mesh keep)
+    out = smooth_across_frames(v, t, [(v, above, t), (v, far, t)], [0.5, 0.25, 0.25], 0.2,
+                               normals=up)
     np.testing.assert_allclose(out[inner, 2], 0.1 / 3.0, atol=1e-12)
     np.testing.assert_array_equal(out[:, :2], v[:, :2])
+    # fixed vertices stay, and pull their neighbours' offsets toward zero
+    edge = ~inner
+    out = smooth_across_frames(v, t, [(v, above, t)], [0.5, 0.5], 0.2, normals=up, fixed=edge)
+    np.testing.assert_array_equal(out[edge], v[edge])
+    assert 0.0 < out[inner, 2].min() < out[inner, 2].max() < 0.05 + 1e-12
+
+
+def test_offset_smoothing_removes_vertex_scale_noise_and_keeps_a_smooth_offset():
+    v, t = grid_plane(0.0, n=40)
+    up = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    inner = np.all((v[:, :2] > 0.2) & (v[:, :2] < 0.8), axis=1)
+    rng = np.random.default_rng(4)
+    bumpy = v.copy()
+    bumpy[:, 2] = 0.05 + rng.uniform(-0.01, 0.01, len(v))  # a plane 0.05 up, noisy per vertex
+    raw = smooth_across_frames(v, t, [(v, bumpy, t)], [0.5, 0.5], 0.2, normals=up, sweeps=0)
+    smooth = smooth_across_frames(v, t, [(v, bumpy, t)], [0.5, 0.5], 0.2, normals=up)
+    assert abs(raw[inner, 2].mean() - 0.025) < 1e-3 and abs(smooth[inner, 2].mean() - 0.025) < 1e-3
+    assert smooth[inner, 2].std() < 0.3 * raw[inner, 2].std()
 
 
 def test_bad_input_is_refused_naming_the_parameter():
@@ -127,11 +148,15 @@ def test_bad_input_is_refused_naming_the_parameter():
     with pytest.raises(ValueError, match="points"):
         normal_offsets(np.full((2, 3), np.nan), up[:2], v, t, 0.1)
     with pytest.raises(ValueError, match="weights"):
-        smooth_across_frames(v, up, [(v, v, t)], [1.0], 0.1)
+        smooth_across_frames(v, t, [(v, v, t)], [1.0], 0.1)
     with pytest.raises(ValueError, match="weights"):
-        smooth_across_frames(v, up, [(v, v, t)], [0.0, 1.0], 0.1)
+        smooth_across_frames(v, t, [(v, v, t)], [0.0, 1.0], 0.1)
     with pytest.raises(ValueError, match="normals"):
-        smooth_across_frames(v, up[:2], [], [1.0], 0.1)
+        smooth_across_frames(v, t, [], [1.0], 0.1, normals=up[:2])
+    with pytest.raises(ValueError, match="sweeps"):
+        smooth_across_frames(v, t, [], [1.0], 0.1, sweeps=-1)
+    with pytest.raises(ValueError, match="fixed"):
+        smooth_across_frames(v, t, [], [1.0], 0.1, fixed=[True])
 
 
 def test_vertex_normals_of_a_sphere_point_outward():
@@ -142,3 +167,17 @@ def test_vertex_normals_of_a_sphere_point_outward():
     # a vertex of no triangle has no normal
     lonely = vertex_normals(np.vstack([v, [[5.0, 5.0, 5.0]]]), t)
     np.testing.assert_array_equal(lonely[-1], 0.0)
+
+
+def test_a_surface_jumping_up_and_down_every_frame_is_held_to_a_ninth_of_it():
+    # static particles, a reconstruction that puts the plane at +d and -d in turn: with weights
+    # 1, 2, 3, 2, 1 frame k's offset is 2 (2/9) (-2 d) = -8 d / 9, so it lands at d / 9
+    v, t = grid_plane(0.0, n=20)
+    up = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    d = 0.01
+    inner = np.all((v[:, :2] > 0.1) & (v[:, :2] < 0.9), axis=1)
+    frames = [grid_plane(d if k % 2 == 0 else -d, n=20)[0] for k in range(5)]
+    me = frames[2]
+    others = [(me, frames[k], t) for k in (0, 1, 3, 4)]
+    out = smooth_across_frames(me, t, others, np.array([3, 1, 2, 2, 1]) / 9, 0.1, normals=up)
+    np.testing.assert_allclose(out[inner, 2], d / 9, atol=1e-12)
