@@ -9,8 +9,8 @@ and along its normal toward the weighted mean of their surfaces (the offsets smo
 the mesh; the vertices on the tank's walls stay). A frame's result depends on
 the particles of frames ``k - K .. k + K`` only, so a resumed or distributed run writes the
 same frames as a serial one. Measured in ``benchmarks/results/splash_motion_notes.md``: on
-the ``drop`` scene, five frames bring the surface motion the particles do not explain from
-1.26x pysplashsurf's to 1.04x, and its flicker below pysplashsurf's.
+the ``drop`` scene, five frames bring the surface's flicker to pysplashsurf's and the motion
+the particles do not explain from 1.26x pysplashsurf's to 1.08x.
 """
 
 from __future__ import annotations
