@@ -250,6 +250,7 @@ def smooth_across_frames(points, triangles, others, weights, reach: float, *, no
     n = vertex_normals(p, t) if normals is None else check_points("normals", normals)
     if n.shape != p.shape:
         raise ValueError(f"normals must have the shape of points {p.shape}, got {n.shape}")
+    reach = check_range("reach", reach, 0.0, math.inf, low_inclusive=False)
     sweeps = check_int("sweeps", sweeps, 0, 1000)
     hold = np.zeros(p.shape[0], bool) if fixed is None else np.asarray(fixed, bool)
     if hold.shape != (p.shape[0],):

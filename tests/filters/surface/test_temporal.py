@@ -153,6 +153,8 @@ def test_bad_input_is_refused_naming_the_parameter():
         smooth_across_frames(v, t, [(v, v, t)], [0.0, 1.0], 0.1)
     with pytest.raises(ValueError, match="normals"):
         smooth_across_frames(v, t, [], [1.0], 0.1, normals=up[:2])
+    with pytest.raises(ValueError, match="reach"):
+        smooth_across_frames(v, t, [], [1.0], 0.0)
     with pytest.raises(ValueError, match="sweeps"):
         smooth_across_frames(v, t, [], [1.0], 0.1, sweeps=-1)
     with pytest.raises(ValueError, match="fixed"):
