@@ -411,25 +411,21 @@ ACROSS_FRAMES = {-2: 1 / 9, -1: 2 / 9, 0: 3 / 9, 1: 2 / 9, 2: 1 / 9}
 
 
 def across_frames(meshes, frames, spacing, tank):
-    """The scene's surfaces filtered across five frames (:func:`filters.surface.temporal.
-    smooth_across_frames`, weights :data:`ACROSS_FRAMES`, reach half a spacing, the other
-    frames' surfaces reached by moving the vertices with the particles, the vertices on the
-    tank's walls held), kept in the tank: what ``blobflow surface --across-frames 2`` writes."""
-    from filters.surface.clip import wall_constraints
-    from filters.surface.temporal import smooth_across_frames
+    """The scene's surfaces filtered across five frames, as ``blobflow surface --across-frames
+    2`` writes them (:func:`filters.surface.temporal.follow_particles_across_frames`, weights
+    :data:`ACROSS_FRAMES`; every particle is in every frame, in the order of its id)."""
+    from filters.surface.temporal import follow_particles_across_frames
 
-    lo, hi = (np.asarray(v, np.float64) for v in tank)
+    rows = np.arange(frames.shape[1])
     out = []
     for k, (points, tris) in enumerate(meshes):
-        others, weights = [], [ACROSS_FRAMES[0]]
+        neighbours, weights = [], [ACROSS_FRAMES[0]]
         for j, w in ACROSS_FRAMES.items():
             if j and 0 <= k + j < len(meshes):
-                others.append((_displaced(points, frames[k], frames[k + j], spacing),
-                               *meshes[k + j]))
+                neighbours.append((rows, frames[k + j], *meshes[k + j]))
                 weights.append(w)
-        fixed = wall_constraints(points, tris, lo, hi)[0].min(axis=1) < 1.0
-        moved = smooth_across_frames(points, tris, others, weights, 0.5 * spacing, fixed=fixed)
-        out.append((np.clip(moved, lo, hi), tris))
+        out.append((follow_particles_across_frames(points, tris, frames[k], neighbours, weights,
+                                                   0.5 * spacing, box=tank), tris))
     return out
 
 

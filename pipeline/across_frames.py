@@ -24,19 +24,12 @@ from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkPointSet, vtkPolyData
 
 from filters.geometry import Box
-from filters.surface.attributes import interpolate_attributes
-from filters.surface.clip import wall_constraints
-from filters.surface.temporal import smooth_across_frames, vertex_normals
+from filters.surface.temporal import follow_particles_across_frames, vertex_normals
 from filters.validation import check_int
 
 from .series import read_collection, read_frame, write_frame
 
 __all__ = ["smooth_series_across_frames", "across_frames_frame", "weights_across"]
-
-#: Largest offset taken from a neighbouring frame's surface, in particle radii (half a
-#: spacing): farther crossings are merges, splits or drops leaving, not noise.
-REACH_R = 1.0
-
 
 def weights_across(frames: int) -> np.ndarray:
     """Triangular weights ``K + 1 - |j|`` of frames ``k - K .. k + K`` (sum 1)."""
@@ -84,7 +77,7 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
     if len(points):
         ids, x = _particles_by_id(particles[k])
         w = weights_across(K)
-        weights, others = [w[K]], []
+        weights, neighbours = [w[K]], []
         for j in range(-K, K + 1):
             if j == 0 or not 0 <= k + j < len(surfaces):
                 continue
@@ -96,19 +89,12 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
             both = other_ids[o] == ids
             if not both.any():
                 continue  # no particle in common: nothing tells where the surface went
-            moved = points + interpolate_attributes(
-                points, x[both], radius, y[o[both]] - x[both], cell_size=options["cell_size"])
             _, vertices, triangles = _mesh(surfaces[k + j])
-            others.append((moved, vertices, triangles))
+            neighbours.append((np.flatnonzero(both), y[o[both]], vertices, triangles))
             weights.append(w[K + j])
-        fixed = None
-        if options["box"] is not None:
-            # the faces cut at the tank's walls stay on them
-            fixed = wall_constraints(points, tris, *options["box"])[0].min(axis=1) < 1.0
-        smoothed = smooth_across_frames(points, tris, others, weights, REACH_R * radius,
-                                        fixed=fixed)
-        if options["box"] is not None:
-            smoothed = np.clip(smoothed, *options["box"])
+        smoothed = follow_particles_across_frames(points, tris, x, neighbours, weights, radius,
+                                                  cell_size=options["cell_size"],
+                                                  box=options["box"])
         dtype = numpy_support.vtk_to_numpy(data.GetPoints().GetData()).dtype
         pts = vtkPoints()
         pts.SetData(numpy_support.numpy_to_vtk(np.ascontiguousarray(smoothed.astype(dtype)),

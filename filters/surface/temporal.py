@@ -38,9 +38,12 @@ from numba import njit, prange
 from ..binning import MAX_CELLS, counting_sort
 from ..elastic.topology import check_triangles
 from ..validation import check_int, check_points, check_range
+from .attributes import interpolate_attributes
+from .clip import wall_constraints
 from .smoothing import vertex_neighbors
 
-__all__ = ["normal_offsets", "smooth_across_frames", "vertex_normals"]
+__all__ = ["normal_offsets", "smooth_across_frames", "follow_particles_across_frames",
+           "vertex_normals"]
 
 #: Barycentric slack of a crossing (relative): a line through an edge shared by two triangles
 #: finds one of them rather than slipping between them.
@@ -278,6 +281,63 @@ def smooth_across_frames(points, triangles, others, weights, reach: float, *, no
         starts, neighbors = vertex_neighbors(t, p.shape[0])
         offset = _smooth_offsets(offset, starts, neighbors, hold, sweeps)
     return p + offset[:, None] * n
+
+
+def follow_particles_across_frames(points, triangles, positions, neighbours, weights,
+                                  radius: float, *, cell_size: float | None = None, box=None,
+                                  reach_r: float = 1.0, sweeps: int = 10):
+    """:func:`smooth_across_frames` with the vertices carried to the other frames by particles.
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+        Vertices of frame ``k``'s surface (m).
+    triangles : (T, 3) int
+        Its triangles.
+    positions : (N, 3) float64
+        Frame ``k``'s particles (m).
+    neighbours : sequence of ((M,) int, (M, 3) float64, (V, 3) float64, (T', 3) int)
+        Per neighbouring frame ``k + j``: the rows of ``positions`` of the particles it has too,
+        where they are in it, and its surface (vertices, triangles). The vertices move by the
+        particles' displacement interpolated at them (Shepard weights of the SPH kernel,
+        :func:`filters.surface.attributes.interpolate_attributes`).
+    weights : sequence of float
+        ``w_0`` (frame ``k``), then one per neighbour (see :func:`smooth_across_frames`).
+    radius : float
+        Particle radius ``r`` (m), > 0.
+    cell_size : float, optional
+        Voxel edge of the interpolation's block index (m); default ``r / 2``.
+    box : (lower, upper), optional
+        The tank's inner box (m): vertices on its walls are held, the result kept inside it.
+    reach_r : float
+        Largest offset taken from a neighbour, over ``r`` (default 1: half a spacing), > 0.
+    sweeps : int
+        Smoothing sweeps of the offsets (:func:`smooth_across_frames`).
+
+    Returns
+    -------
+    (P, 3) float64
+    """
+    p = check_points("points", points)
+    x = check_points("positions", positions)
+    radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
+    reach_r = check_range("reach_r", reach_r, 0.0, math.inf, low_inclusive=False)
+    cell_size = 0.5 * radius if cell_size is None else check_range(
+        "cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
+    others = []
+    for rows, where, vertices, other_triangles in neighbours:
+        rows = np.asarray(rows, np.int64)
+        moved = p + interpolate_attributes(p, x[rows], radius, np.asarray(where) - x[rows],
+                                           cell_size=cell_size)
+        others.append((moved, vertices, other_triangles))
+    fixed = None
+    if box is not None:
+        lower, upper = (np.asarray(b, np.float64) for b in box)
+        # the faces cut at the tank's walls stay on them
+        fixed = wall_constraints(p, triangles, lower, upper)[0].min(axis=1) < 1.0
+    out = smooth_across_frames(p, triangles, others, weights, reach_r * radius, fixed=fixed,
+                               sweeps=sweeps)
+    return out if box is None else np.clip(out, lower, upper)
 
 
 @njit(cache=True)
