@@ -108,10 +108,16 @@ def splashsurf_surface(x, spacing):
     """pysplashsurf's smoothed surface (module docstring); (points, triangles)."""
     import pysplashsurf
 
-    mesh, _ = pysplashsurf.reconstruction_pipeline(
+    mesh, reconstruction = pysplashsurf.reconstruction_pipeline(
         np.ascontiguousarray(x, np.float32), particle_radius=0.5 * spacing, smoothing_length=2.0,
         cube_size=0.5, iso_surface_threshold=0.6, mesh_smoothing_iters=25,
         mesh_smoothing_weights=True)
+    # read back what it used: its lengths are multiples of the particle radius (its docstring
+    # says otherwise), so the marching-cubes cell must be 0.5 r = s / 4
+    cell = reconstruction.grid.cell_size
+    if abs(cell - 0.25 * spacing) > 1e-6 * spacing:
+        raise RuntimeError(f"pysplashsurf used a {cell:g} m cell, not {0.25 * spacing:g} m "
+                           f"(0.5 particle radii): its parameters were not read as intended")
     m = mesh.mesh
     return np.asarray(m.vertices, np.float64), np.asarray(m.triangles, np.int64)
 
