@@ -324,12 +324,23 @@ def follow_particles_across_frames(points, triangles, positions, neighbours, wei
     reach_r = check_range("reach_r", reach_r, 0.0, math.inf, low_inclusive=False)
     cell_size = 0.5 * radius if cell_size is None else check_range(
         "cell_size", cell_size, 0.0, math.inf, low_inclusive=False)
-    others = []
-    for rows, where, vertices, other_triangles in neighbours:
-        rows = np.asarray(rows, np.int64)
-        moved = p + interpolate_attributes(p, x[rows], radius, np.asarray(where) - x[rows],
-                                           cell_size=cell_size)
-        others.append((moved, vertices, other_triangles))
+    neighbours = [(np.asarray(rows, np.int64), where, vertices, other_triangles)
+                  for rows, where, vertices, other_triangles in neighbours]
+    moved = [None] * len(neighbours)
+    pending = list(range(len(neighbours)))
+    while pending:
+        # the neighbours that share their particles share the Shepard weights at the vertices:
+        # one interpolation of their displacements side by side (the same numbers, bit for bit)
+        rows = neighbours[pending[0]][0]
+        same = [j for j in pending if np.array_equal(neighbours[j][0], rows)]
+        u = interpolate_attributes(p, x[rows], radius,
+                                   np.hstack([np.asarray(neighbours[j][1], np.float64) - x[rows]
+                                              for j in same]), cell_size=cell_size)
+        for c, j in enumerate(same):
+            moved[j] = p + u[:, 3 * c:3 * c + 3]
+        pending = [j for j in pending if j not in same]
+    others = [(m, vertices, other_triangles)
+              for m, (_, _, vertices, other_triangles) in zip(moved, neighbours)]
     fixed = None
     if box is not None:
         lower, upper = (np.asarray(b, np.float64) for b in box)

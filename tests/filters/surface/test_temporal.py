@@ -183,3 +183,30 @@ def test_a_surface_jumping_up_and_down_every_frame_is_held_to_a_ninth_of_it():
     others = [(me, frames[k], t) for k in (0, 1, 3, 4)]
     out = smooth_across_frames(me, t, others, np.array([3, 1, 2, 2, 1]) / 9, 0.1, normals=up)
     np.testing.assert_allclose(out[inner, 2], d / 9, atol=1e-12)
+
+
+def test_neighbours_sharing_their_particles_move_the_vertices_as_one_by_one():
+    # follow_particles_across_frames interpolates the displacements of the neighbours that have
+    # the same particles in one pass (same Shepard weights): bit for bit what one interpolation
+    # per neighbour gives, also when one neighbour has lost some of the particles
+    from filters.surface.attributes import interpolate_attributes
+    from filters.surface.temporal import follow_particles_across_frames
+
+    rng = np.random.default_rng(3)
+    v, t = grid_plane(0.5, n=24)
+    x = np.column_stack([rng.uniform(0, 1, (600, 2)), rng.uniform(0.44, 0.5, 600)])
+    radius = 0.06
+    everyone = np.arange(len(x))
+    some = everyone[::2]
+    neighbours = []
+    for j, rows in enumerate((everyone, everyone, some, everyone)):
+        where = x[rows] + rng.normal(0, 0.004, (len(rows), 3)) + [0, 0, 0.003 * (j - 1.5)]
+        neighbours.append((rows, where, *grid_plane(0.5 + 0.004 * (j - 1.5), n=17)))
+    weights = [3, 1, 2, 2, 1]
+    out = follow_particles_across_frames(v, t, x, neighbours, weights, radius)
+    others = [(v + interpolate_attributes(v, x[rows], radius, where - x[rows],
+                                          cell_size=0.5 * radius), pv, pt)
+              for rows, where, pv, pt in neighbours]
+    expected = smooth_across_frames(v, t, others, weights, radius)
+    assert np.array_equal(out, expected)
+    assert np.abs(out[:, 2] - 0.5).max() > 1e-4  # the neighbours did move it
