@@ -101,7 +101,9 @@ def _build_parser() -> argparse.ArgumentParser:
                                "particle series (serially or on a Dask cluster)")
     p_surface.add_argument("particles", help="particle series (.pvd or .series)")
     p_surface.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p_surface.add_argument("--name", default="surface", help="series name (default surface)")
+    p_surface.add_argument("--name", default="surface",
+                           help="series name (default surface); the renders draw a series whose "
+                                "name starts with 'surface' as water")
     p_surface.add_argument("--radius", type=float, metavar="R",
                            help="particle radius (m); default half the spacing of the run that "
                                 "wrote the particles (its scene.json), else 0.01")
