@@ -10,16 +10,14 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 from pathlib import Path
 
-from . import cli_tools
+from . import cli_surface, cli_tools
+from .cli_common import (UsageError, add_cluster_options as _add_cluster_options,
+                         check_writable as _check_writable, client as _client,
+                         close_client as _close)
 
 __all__ = ["main"]
-
-
-class UsageError(Exception):
-    """A mistake of the user's: reported as one line, exit code 2."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -97,32 +95,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p_render.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _add_cluster_options(p_render)
 
-    p_surface = sub.add_parser("surface", help="reconstruct the surface of every frame of a "
-                               "particle series (serially or on a Dask cluster)")
-    p_surface.add_argument("particles", help="particle series (.pvd or .series)")
-    p_surface.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p_surface.add_argument("--name", default="surface",
-                           help="series name (default surface); the renders draw a series whose "
-                                "name starts with 'surface' as water")
-    p_surface.add_argument("--radius", type=float, metavar="R",
-                           help="particle radius (m); default half the spacing of the run that "
-                                "wrote the particles (its scene.json), else 0.01")
-    p_surface.add_argument("--cell-size", type=float, metavar="H",
-                           help="voxel edge (m), default radius / 2")
-    p_surface.add_argument("--kernel", metavar="K", help="splatting kernel")
-    p_surface.add_argument("--smooth-iterations", type=int, metavar="N",
-                           help="windowed-sinc iterations")
-    p_surface.add_argument("--option", dest="options", action="append", default=[],
-                           metavar="NAME=VALUE", help="further surface option (repeatable), as "
-                                                      "in pipeline.surface.surface_stages")
-    p_surface.add_argument("--across-frames", type=int, default=0, metavar="K",
-                           help="smooth every frame's surface with those of the K frames on each "
-                                "side, the particles followed by id (0 to 10; default 0: each "
-                                "frame alone; 2 for movies)")
-    p_surface.add_argument("--resume", action="store_true", help="skip frames already written")
-    p_surface.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    _add_cluster_options(p_surface)
-    p_surface.help_hook = cli_tools.surface_help
+    cli_surface.add_surface_parser(sub)
 
     p_info = sub.add_parser("info", help="describe a written series (.pvd or .series)")
     p_info.add_argument("series", help="path to a .pvd or .series file")
@@ -137,144 +110,6 @@ def _version() -> str:
     from .version import version
 
     return version()
-
-
-def _add_cluster_options(parser) -> None:
-    group = parser.add_mutually_exclusive_group()
-    group.add_argument("--workers", type=int, metavar="N",
-                       help="run frames in parallel on a local Dask cluster of N processes")
-    group.add_argument("--scheduler", metavar="ADDRESS",
-                       help="run frames on an existing Dask cluster (tcp://host:port); its "
-                            "workers must see the same paths")
-
-
-def _client(args):
-    """The Dask client the options ask for, or None (serial); one-line errors."""
-    if args.workers is None and args.scheduler is None:
-        return None
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f"--workers must be >= 1, got {args.workers}")
-    from .frames import SchedulerError, connect
-
-    try:
-        return connect(scheduler=args.scheduler, workers=args.workers)
-    except (SchedulerError, ValueError) as exc:
-        raise UsageError(str(exc)) from None
-
-
-def _close(client) -> None:
-    if client is not None:
-        cluster = getattr(client, "cluster", None)
-        client.close()
-        if cluster is not None:
-            cluster.close()
-
-
-def _report_memory(result) -> None:
-    if result.peak_memory:
-        worst = max(result.peak_memory.values()) / 2**20
-        print(f"peak memory per worker: up to {worst:.0f} MiB over {len(result.peak_memory)} "
-              f"process(es)")
-
-
-def _surface_options(args, source: Path) -> dict:
-    """Options of the surface: the producing run's (its ``scene.json`` beside the particles,
-    when there is one), then the command line's flags and ``--option`` assignments."""
-    from .assignments import parse_assignments
-    from .surface_options import SURFACE_PARAMETERS, surface_options_from_record
-
-    options = {}
-    record_path = source.parent / "scene.json"
-    if record_path.is_file():
-        try:
-            options = surface_options_from_record(json.loads(record_path.read_text("utf-8")))
-        except (OSError, ValueError, TypeError) as exc:
-            raise UsageError(f"{record_path} is not a blobflow run record ({exc})") from None
-    flags = dict(radius=args.radius, cell_size=args.cell_size, kernel=args.kernel,
-                 smooth_iterations=args.smooth_iterations)
-    options.update({k: v for k, v in flags.items() if v is not None})
-    try:
-        options.update(parse_assignments(args.options, SURFACE_PARAMETERS, flag="--option",
-                                         owner="the surface"))
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
-    return options
-
-
-# -- surface ------------------------------------------------------------------------------------
-def _cmd_surface(args) -> int:
-    from .frames import FramesError, surface_series
-    from .series import SeriesError, validate_series
-
-    if not args.name.isidentifier():
-        raise UsageError(f"--name must be a plain name such as 'surface' (letters, digits, _), "
-                         f"got {args.name!r}")
-    source = Path(args.particles)
-    out = Path(args.out)
-    target = out / f"{args.name}.pvd"
-    if (target.resolve() == source.resolve()
-            or (out / args.name).resolve() == (source.parent / source.name.split(".")[0]).resolve()):
-        raise UsageError(f"--out {out} with --name {args.name} would overwrite the input series "
-                         f"{source}; choose another --out or --name")
-    try:
-        entries = validate_series(source)  # every frame, before anything is written
-    except (FileNotFoundError, SeriesError) as exc:
-        raise UsageError(str(exc)) from None
-    inputs = {(source.parent / name).resolve() for _, name in entries}
-    if any(p.parent == (out / args.name).resolve() for p in inputs):
-        raise UsageError(f"--out {out} with --name {args.name} would overwrite the input frames; "
-                         f"choose another --out or --name")
-    if not 0 <= args.across_frames <= 10:
-        raise UsageError(f"--across-frames must be in [0, 10], got {args.across_frames}")
-    options = _surface_options(args, source)
-    try:
-        from .surface import surface_stages
-
-        surface_stages(**options)
-    except (TypeError, ValueError) as exc:
-        raise UsageError(str(exc)) from None
-    _fit_budget_to_memory(args, options)
-    _check_writable(out)
-    client = _client(args)
-    try:
-        result = surface_series(args.particles, target, client=client,
-                                resume=args.resume, progress=not args.quiet,
-                                across_frames=args.across_frames, **options)
-    except FramesError as exc:
-        print(f"blobflow: {exc}", file=sys.stderr)
-        print(f"blobflow: the frames that succeeded are in {out}; rerun with --resume",
-              file=sys.stderr)
-        return 1
-    finally:
-        _close(client)
-    print(f"wrote {result.path} ({result.computed} frames computed, {result.skipped} kept)")
-    _report_memory(result)
-    return 0
-
-
-def _fit_budget_to_memory(args, options: dict) -> None:
-    """Tie the per-frame grid budget to this machine before any frame starts.
-
-    Each local worker may hold one frame's grid, up to ``max_bytes``.  Left at its default, the
-    budget is lowered so that all workers together fit :func:`filters.memory.memory_limit`;
-    given explicitly, a budget the machine cannot hold is refused.  A remote ``--scheduler``'s
-    workers have their own memory and keep the budget as given.
-    """
-    from filters.memory import MemoryLimitError, check_memory, format_bytes, memory_limit
-    from filters.surface.grid import DEFAULT_MAX_BYTES
-
-    if args.scheduler is not None:
-        return
-    concurrent = args.workers or 1
-    if "max_bytes" not in options:
-        options["max_bytes"] = int(max(1, min(DEFAULT_MAX_BYTES, memory_limit() // concurrent)))
-        return
-    try:
-        check_memory(f"{concurrent} frame(s) at once, max_bytes = "
-                     f"{format_bytes(options['max_bytes'])} each",
-                     concurrent * options["max_bytes"], hint="lower max_bytes or --workers")
-    except MemoryLimitError as exc:
-        raise UsageError(str(exc)) from None
 
 
 # -- list ---------------------------------------------------------------------------------------
@@ -301,36 +136,6 @@ def _cmd_list(args) -> int:
 
 
 # -- run ----------------------------------------------------------------------------------------
-def _check_writable(directory: Path) -> None:
-    """Fail early, with one line, if ``directory`` cannot be created or written.
-
-    Tries for real (``os.access`` says yes to root under ``/sys`` and ``/proc``): creates the
-    missing folders and a temporary file, then removes what it created.
-    """
-    probe = directory
-    while not probe.exists():
-        probe = probe.parent
-    if not probe.is_dir():
-        raise UsageError(f"cannot create output folder {directory}: {probe} is not a folder")
-    created = []
-    try:
-        missing = [directory, *directory.parents][: len(directory.parts) - len(probe.parts)]
-        for folder in reversed(missing):
-            folder.mkdir()
-            created.append(folder)
-        with tempfile.TemporaryFile(dir=directory):
-            pass
-    except OSError as exc:
-        raise UsageError(f"output folder {directory} cannot be written: "
-                         f"{exc.strerror or exc}") from None
-    finally:
-        for folder in reversed(created):
-            try:
-                folder.rmdir()
-            except OSError:
-                pass
-
-
 def _scene_record(scene, parameters, fps, outputs) -> dict:
     return {"scene": scene.name, "fps": fps, "parameters": parameters, "outputs": outputs}
 
@@ -599,7 +404,7 @@ def main(argv=None) -> int:
         if args.command in ("run", "surface", "render"):
             cli_tools.announce_compilation()
         command = {"list": _cmd_list, "run": _cmd_run, "render": _cmd_render,
-                   "surface": _cmd_surface, "info": _cmd_info,
+                   "surface": cli_surface.surface_command, "info": _cmd_info,
                    "gallery": _usage_errors(lambda a: cli_tools.gallery_command(
                        a, run=main, check_writable=_check_writable)),
                    "export": _usage_errors(cli_tools.export_command),
