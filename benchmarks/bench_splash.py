@@ -134,17 +134,15 @@ def splashsurf_at_the_scenes_volume(x, spacing, tank, mesh):
     volume accuracy; (points, triangles)."""
     import pyvista as pv
 
-    from filters.geometry import Box
     from pipeline.algorithm import update
-    from pipeline.contour import polydata_to_mesh
+    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
     from pipeline.liquid import ClipBox, VolumeCorrection
 
     points, tris = mesh
     box = Box(*tank)
     cell = 0.25 * spacing  # the scenes' voxel and pysplashsurf's cube (0.5 particle radii)
     clip = ClipBox(box, tolerance=0.01 * cell)
-    clip.SetInputDataObject(0, pv.PolyData(points, np.hstack(
-        [np.full((len(tris), 1), 3), tris]).ravel()))
+    clip.SetInputDataObject(0, mesh_to_polydata(points, tris))  # pysplashsurf's float32
     correct = VolumeCorrection(radius=0.5 * spacing, container=box, cell_size=cell)
     correct.SetInputConnection(0, clip.GetOutputPort(0))
     correct.SetInputDataObject(1, pv.PolyData(np.ascontiguousarray(x, np.float64)))
@@ -407,7 +405,6 @@ def run_motion(report, *settings):
             # the filter alone (the scene's surfaces were made above), Numba compiled or cached
             out["across_5_frames_wall_s_per_frame"] = (time.perf_counter() - t0) / len(meshes)
         rms, capped, large, shape, flicker = [], [], [], [], []
-        backward = None
         for k in range(len(frames) - 1):
             p, tris = meshes[k]
             keep = away_from_walls(p, tank, spacing)
@@ -451,24 +448,23 @@ def run_motion(report, *settings):
     return out, topology
 
 
-#: Weights of frames k-2 .. k+2 in :func:`across_frames`.
-ACROSS_FRAMES = {-2: 1 / 9, -1: 2 / 9, 0: 3 / 9, 1: 2 / 9, 2: 1 / 9}
-
-
 def across_frames(meshes, frames, spacing, tank):
     """The scene's surfaces filtered across five frames, as ``blobflow surface --across-frames
     2`` writes them (:func:`filters.surface.temporal.follow_particles_across_frames`, weights
-    :data:`ACROSS_FRAMES`; every particle is in every frame, in the order of its id)."""
+    :func:`pipeline.across_frames.weights_across`; every particle is in every frame, in the
+    order of its id)."""
     from filters.surface.temporal import follow_particles_across_frames
+    from pipeline.across_frames import weights_across
 
+    w = weights_across(2)  # frames k-2 .. k+2: 1, 2, 3, 2, 1 over 9
     rows = np.arange(frames.shape[1])
     out = []
     for k, (points, tris) in enumerate(meshes):
-        neighbours, weights = [], [ACROSS_FRAMES[0]]
-        for j, w in ACROSS_FRAMES.items():
-            if j and 0 <= k + j < len(meshes):
+        neighbours, weights = [], [w[2]]
+        for j in (-2, -1, 1, 2):
+            if 0 <= k + j < len(meshes):
                 neighbours.append((rows, frames[k + j], *meshes[k + j]))
-                weights.append(w)
+                weights.append(w[2 + j])
         out.append((follow_particles_across_frames(points, tris, frames[k], neighbours, weights,
                                                    0.5 * spacing, box=tank), tris))
     return out

@@ -27,6 +27,7 @@ from filters.geometry import Box
 from filters.surface.temporal import follow_particles_across_frames, vertex_normals
 from filters.validation import check_int
 
+from .contour import polydata_to_mesh
 from .series import read_collection, read_frame, write_frame
 
 __all__ = ["smooth_series_across_frames", "across_frames_frame", "weights_across"]
@@ -53,11 +54,7 @@ def _mesh(path):
     data = vtkPolyData.SafeDownCast(read_frame(path))
     if data is None:
         raise TypeError(f"{path}: a surface frame must be polygonal data (vtkPolyData)")
-    if data.GetNumberOfPoints() == 0:
-        return data, np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    points = numpy_support.vtk_to_numpy(data.GetPoints().GetData()).astype(np.float64)
-    tris = numpy_support.vtk_to_numpy(data.GetPolys().GetConnectivityArray()).reshape(-1, 3)
-    return data, points, tris.astype(np.int64)
+    return (data, *polydata_to_mesh(data))
 
 
 def across_frames_frame(in_file: str, out_file: str, time: float, options: dict) -> None:
