@@ -14,6 +14,7 @@ from .simulation import (
     frame_times,
 )
 from .ballistic import BallisticModel, BallisticParticles
+from .rigid import RigidBodies, RigidBody
 
 __all__ = [
     "Frame",
@@ -25,4 +26,6 @@ __all__ = [
     "frame_times",
     "BallisticModel",
     "BallisticParticles",
+    "RigidBody",
+    "RigidBodies",
 ]

@@ -12,8 +12,8 @@ One step of ``h`` (``symplectic_euler``, the default): the forces (gravity, and 
 with :meth:`RigidBodies.apply_force` / :meth:`~RigidBodies.apply_point_forces` since the last
 step) kick the velocities; contacts found at the current positions
 (:func:`filters.rigid.contact.find_contacts`) get their impulses with Coulomb friction and
-restitution (:func:`~filters.rigid.contact.solve_velocities`) and their overlaps a separating
-push (:func:`~filters.rigid.contact.solve_positions`); the drift then moves the bodies with the
+restitution (:func:`filters.rigid.impulses.solve_velocities`) and their overlaps a separating
+push (:func:`~filters.rigid.impulses.solve_positions`); the drift then moves the bodies with the
 new velocities (:func:`filters.rigid.dynamics.drift`).  ``euler`` drifts with the velocities of
 the start of the step (for comparison; contacts can then overlap for a step).
 """
@@ -26,16 +26,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..elastic.contact import Colliders
-from ..elastic.threads import serial_below
 from ..elastic.energy import EnergyAccount
+from ..elastic.threads import serial_below
 from ..integrators import check_scheme
 from ..simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
 from ..validation import check_finite_vector, check_int, check_points, check_range
 from .body import RigidBody
-from .contact import (broad_phase, find_contacts, pack_colliders, solve_positions,
-                      solve_velocities)
+from .contact import broad_phase, find_contacts, pack_colliders
 from .dynamics import (PARALLEL_MIN_POINTS, body_rotations, drift, kick, point_force_sums,
                        points_to_world, world_inverse_inertia)
+from .impulses import solve_positions, solve_velocities
 from .quaternion import check_quaternions
 from .sdf import pack_sdfs
 
@@ -464,7 +464,8 @@ class RigidBodies(Simulation):
         ``id`` and ``body``; triangles; field data: per body (B rows) its centre of mass
         ``body_position``, orientation ``body_orientation`` (w, x, y, z), the translation of its
         mesh ``body_translation`` (``x = R(q) X + t`` for the mesh as given), velocity and
-        angular velocity, then the energy account and ``contact_count``."""
+        angular velocity, then the energy account and ``contact_count`` (the contacts that pushed
+        in the last step)."""
         s = self.state
         x, v = self.to_world(self._vertices, self._vertex_body)
         q = s.extra["orientations"]
@@ -476,7 +477,7 @@ class RigidBodies(Simulation):
                  "body_translation": translation, "body_velocity": s.velocities.copy(),
                  "body_angular_velocity": s.extra["angular_velocities"].copy()}
         field.update(self.energies().field_data())
-        field["contact_count"] = np.array([self.last_contacts], dtype=np.int64)
+        field["contact_count"] = np.array([s.extra["contact_keys"].size], dtype=np.int64)
         return Frame(time=s.time, points=x,
                      point_data={"velocity": v, "id": np.arange(x.shape[0], dtype=np.int64),
                                  "body": self._vertex_body.copy()},

@@ -23,9 +23,11 @@ def _run(sim, seconds, h=H):
         sim.step(h)
 
 
-def test_a_box_at_rest_on_the_floor_stays_exactly_at_rest():
+@pytest.mark.parametrize("restitution", [0.0, 0.8])
+def test_a_box_at_rest_on_the_floor_stays_exactly_at_rest(restitution):
     v, f = box_mesh((0.2, 0.3, 0.1), center=(0.0, 0.0, 0.05))
-    sim = RigidBodies([RigidBody(v, f, density=600.0)], colliders=_floor())
+    sim = RigidBodies([RigidBody(v, f, density=600.0, restitution=restitution)],
+                      colliders=_floor())
     x0 = sim.state.positions.copy()
     q0 = sim.state.extra["orientations"].copy()
     _run(sim, 0.25)

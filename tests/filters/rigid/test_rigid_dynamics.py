@@ -83,6 +83,9 @@ def test_energy_of_tumbling_does_not_drift_over_many_periods():
     w0 = np.array([2.0, 5.0, 1.0])
     de, dl, _ = _tumble(w0, 4e-3, 60.0, every=25)
     assert de < 2e-5 and dl < 1e-10
+    # a step of about half a radian per step: still bounded, still exact in L
+    de, dl, _ = _tumble(w0, 0.1, 200.0, every=1)
+    assert de < 1e-2 and dl < 1e-11
 
 
 def test_applied_forces_and_torques_act_for_one_step():
