@@ -4,7 +4,11 @@
 impulses (sequential impulses, Catto 2005, "Iterative dynamics with temporal coherence", GDC):
 per contact a normal impulse ``lambda_n >= 0`` with ``v_n^+ >= target`` and complementarity, and a
 tangential impulse in the contact plane with the Coulomb bound ``|lambda_t| <= mu lambda_n``
-(the cone, not a pyramid: a slide in any direction sees the same ``mu``).  The target is 0, or
+(the cone, not a pyramid): a contact sticks with the 2x2 block impulse that stops its slip if
+that is inside the cone; otherwise a scalar update (one effective mass for the plane) is
+projected on the cone, whose fixed point is ``mu lambda_n`` exactly against the slip (maximal
+dissipation; a 2x2 update would tilt it towards the stiffer direction), so that a slide in any
+direction sees the same ``mu``.  The target is 0, or
 ``-phi / h`` for a gap, or ``-e v_n^-`` (Newton's restitution) for a point that reaches the
 surface in this step faster than the threshold speed.  The impulses of the previous step start the
 iteration (*warm starting*, matched by body, point and partner), so that a resting stack converges
@@ -87,6 +91,43 @@ def _arms(ints, floats, positions):
     return r
 
 
+@njit(cache=True, inline="always")
+def _cross_term(ii, rx, ry, rz, d, e):
+    """``(r x d) . I^-1 (r x e)`` of one body."""
+    cx = ry * d[2] - rz * d[1]
+    cy = rz * d[0] - rx * d[2]
+    cz = rx * d[1] - ry * d[0]
+    ex = ry * e[2] - rz * e[1]
+    ey = rz * e[0] - rx * e[2]
+    ez = rx * e[1] - ry * e[0]
+    return (cx * (ii[0, 0] * ex + ii[0, 1] * ey + ii[0, 2] * ez)
+            + cy * (ii[1, 0] * ex + ii[1, 1] * ey + ii[1, 2] * ez)
+            + cz * (ii[2, 0] * ex + ii[2, 1] * ey + ii[2, 2] * ez))
+
+
+@njit(cache=True)
+def _tangent_block(ints, r, inv_mass, inv_inertia, t1, t2):
+    """The 2x2 effective mass of the contact plane (the inverse of its inverse-mass matrix
+    ``K_t``), as ``(m11, m12, m22)`` -- the impulse ``-M v_t`` stops the slip ``v_t`` of this
+    contact alone -- and the scalar ``1 / lambda_max(K_t)`` of the sliding update."""
+    a = ints[0]
+    b = ints[1]
+    k11 = _inverse_mass_along(inv_mass[a], inv_inertia[a], r[0], r[1], r[2], t1[0], t1[1], t1[2])
+    k22 = _inverse_mass_along(inv_mass[a], inv_inertia[a], r[0], r[1], r[2], t2[0], t2[1], t2[2])
+    k12 = _cross_term(inv_inertia[a], r[0], r[1], r[2], t1, t2)
+    if b >= 0:
+        k11 += _inverse_mass_along(inv_mass[b], inv_inertia[b], r[3], r[4], r[5], t1[0], t1[1],
+                                   t1[2])
+        k22 += _inverse_mass_along(inv_mass[b], inv_inertia[b], r[3], r[4], r[5], t2[0], t2[1],
+                                   t2[2])
+        k12 += _cross_term(inv_inertia[b], r[3], r[4], r[5], t1, t2)
+    det = k11 * k22 - k12 * k12
+    top = 0.5 * (k11 + k22) + math.sqrt(0.25 * (k11 - k22) ** 2 + k12 * k12)
+    if not (det > 0.0 and top > 0.0):
+        return 0.0, 0.0, 0.0, 0.0
+    return k22 / det, -k12 / det, k11 / det, 1.0 / top
+
+
 @njit(cache=True)
 def _mass_along(ints, r, inv_mass, inv_inertia, dx, dy, dz):
     a = ints[0]
@@ -134,7 +175,7 @@ def solve_velocities(ints, floats, positions, v, w, inv_mass, inv_inertia, warm,
     k = ints.shape[0]
     r = _arms(ints, floats, positions)
     tangents = np.empty((k, 6))
-    masses = np.empty((k, 3))
+    masses = np.empty((k, 5))
     target = np.empty(k)
     lam = np.zeros((k, 3))
     for c in range(k):
@@ -143,8 +184,8 @@ def solve_velocities(ints, floats, positions, v, w, inv_mass, inv_inertia, warm,
         tangents[c, 0], tangents[c, 1], tangents[c, 2] = t1
         tangents[c, 3], tangents[c, 4], tangents[c, 5] = t2
         masses[c, 0] = _mass_along(ints[c], r[c], inv_mass, inv_inertia, n0, n1, n2)
-        masses[c, 1] = _mass_along(ints[c], r[c], inv_mass, inv_inertia, t1[0], t1[1], t1[2])
-        masses[c, 2] = _mass_along(ints[c], r[c], inv_mass, inv_inertia, t2[0], t2[1], t2[2])
+        masses[c, 1], masses[c, 2], masses[c, 3], masses[c, 4] = _tangent_block(
+            ints[c], r[c], inv_mass, inv_inertia, t1, t2)
         a = ints[c, 0]
         b = ints[c, 1]
         phi = floats[c, 6]
@@ -205,12 +246,19 @@ def solve_velocities(ints, floats, positions, v, w, inv_mass, inv_inertia, warm,
             cap = floats[c, 8] * lam[c, 0]
             v1 = _relative(v, w, a, b, r, c, tangents[c, 0], tangents[c, 1], tangents[c, 2])
             v2 = _relative(v, w, a, b, r, c, tangents[c, 3], tangents[c, 4], tangents[c, 5])
-            l1 = lam[c, 1] - masses[c, 1] * v1
-            l2 = lam[c, 2] - masses[c, 2] * v2
+            # sticking: the impulse that stops this contact's slip (a 2x2 block)
+            l1 = lam[c, 1] - (masses[c, 1] * v1 + masses[c, 2] * v2)
+            l2 = lam[c, 2] - (masses[c, 2] * v1 + masses[c, 3] * v2)
             lt = math.sqrt(l1 * l1 + l2 * l2)
             if lt > cap:
-                l1 = l1 * cap / lt if lt > 0.0 else 0.0
-                l2 = l2 * cap / lt if lt > 0.0 else 0.0
+                # sliding: a scalar update projected on the cone, whose fixed point is the
+                # largest friction exactly against the slip (maximal dissipation)
+                l1 = lam[c, 1] - masses[c, 4] * v1
+                l2 = lam[c, 2] - masses[c, 4] * v2
+                lt = math.sqrt(l1 * l1 + l2 * l2)
+                if lt > cap:
+                    l1 *= cap / lt
+                    l2 *= cap / lt
             d1 = l1 - lam[c, 1]
             d2 = l2 - lam[c, 2]
             lam[c, 1] = l1

@@ -142,7 +142,7 @@ class RigidBodies(Simulation):
 
     def __init__(self, bodies, positions=None, orientations=None, velocities=None,
                  angular_velocities=None, *, gravity=(0.0, 0.0, -9.81), colliders=None,
-                 scheme="symplectic_euler", max_dt=1.0 / 240.0, iterations=50, slop=1e-4,
+                 scheme="symplectic_euler", max_dt=1.0 / 240.0, iterations=200, slop=1e-4,
                  separation_rate=0.2, rest_speed=1e-2, max_speed=100.0):
         bodies = tuple(bodies) if not isinstance(bodies, RigidBody) else (bodies,)
         if not bodies:

@@ -198,3 +198,55 @@ def test_a_body_stays_in_a_container_and_rests_on_a_sphere():
     # quarter of its radius): it sinks in by about (0.01 m)^2 / (2 R) = 1e-4 m
     np.testing.assert_allclose(sim.state.positions[0], [0.0, 0.0, 0.55], atol=2e-4)
     assert np.abs(sim.state.velocities).max() < 1e-10
+
+
+def test_friction_is_a_cone_the_slide_direction_does_not_matter():
+    a, mu = math.radians(30.0), 0.3
+    speeds = []
+    for azimuth in (0.0, math.radians(37.0), math.radians(-115.0)):
+        normal = np.array([-math.sin(a) * math.cos(azimuth), -math.sin(a) * math.sin(azimuth),
+                           math.cos(a)])
+        v, f = box_mesh((0.2, 0.2, 0.05))
+        tilt = np.cross([0, 0, 1.0], normal)
+        sim = RigidBodies([RigidBody(v, f, density=500.0, friction=mu)],
+                          positions=[0.025 * normal],
+                          orientations=[quaternion_from_axis_angle(tilt, a)],
+                          colliders=Colliders(friction=mu).add(Plane((0, 0, 0), normal)))
+        _run(sim, 0.5)
+        speeds.append(np.linalg.norm(sim.state.velocities[0]))
+    expected = G * (math.sin(a) - mu * math.cos(a)) * 0.5
+    np.testing.assert_allclose(speeds, expected, rtol=1e-12)
+
+
+def test_a_fast_ball_does_not_tunnel_through_a_thin_wall():
+    # 20 m/s at 60 steps per second: 0.33 m per step through a wall 1 cm thick
+    vb, fb = ball(0.05, 2)
+    vw, fw = box_mesh((0.01, 1.0, 1.0))
+    sim = RigidBodies([RigidBody(vb, fb, density=500.0, restitution=0.0),
+                       RigidBody(vw, fw, fixed=True)],
+                      positions=[[-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+                      velocities=[[20.0, 0.0, 0.0], [0, 0, 0]], gravity=(0, 0, 0))
+    ball_points = sim._vertex_body == 0
+    front = []
+    for _ in range(30):
+        sim.step(1.0 / 60.0)
+        x, _ = sim.to_world(sim._vertices, sim._vertex_body)
+        front.append(x[ball_points, 0].max())
+    assert max(front) < -0.005 + 1e-3  # at most 1 mm into the wall's face
+    assert max(front) > -0.005 - 1e-3  # and it reached the wall
+    assert abs(sim.state.velocities[0, 0]) < 0.05  # inelastic: 20 m/s stopped at the wall
+
+
+def test_overlaps_are_pushed_apart_without_gaining_speed():
+    v, f = box_mesh(0.2)
+    sim = RigidBodies([RigidBody(v, f, density=500.0), RigidBody(v, f, density=800.0)],
+                      positions=[[0, 0, 0], [0.19, 0.0, 0.0]], gravity=(0, 0, 0))
+    for _ in range(120):
+        sim.step(H)
+        assert np.abs(sim.state.velocities).max() == 0.0
+        assert np.abs(sim.state.extra["angular_velocities"]).max() < 1e-15
+    gap = sim.state.positions[1, 0] - sim.state.positions[0, 0]
+    assert 0.2 - 1e-4 - 1e-9 <= gap < 0.2  # separated to within the slop, no further
+    # the centre of mass stays put: the push conserves momentum
+    mass = np.array([b.mass for b in sim.model.bodies])
+    assert abs(mass @ sim.state.positions[:, 0] - mass[1] * 0.19) < 1e-15

@@ -167,3 +167,30 @@ def test_two_solids_touching_at_a_vertex_are_one_valid_body():
     p = mass_properties(v, f, 1.0)
     assert p.volume == pytest.approx(2.0, rel=1e-14)
     np.testing.assert_allclose(p.center, 0.0, atol=1e-15)
+
+
+def test_the_distance_grid_of_a_non_convex_body_is_within_a_cell_of_the_exact_distance(rng):
+    from filters.rigid.sdf import triangle_distance, winding_number
+
+    v, f = l_prism()
+    body = RigidBody(v, f, sdf_resolution=32)
+    assert not body.convex
+    origin, cell, grid = body.sdf[1:]
+    # points over the grid (3 cells beyond the mesh on every side)
+    x = rng.uniform(origin, origin + cell * (np.array(grid.shape) - 1), size=(400, 3))
+    d, n = body.signed_distance(x)
+    exact = np.array([min(triangle_distance(*p, body.vertices, body.faces, t)
+                          for t in range(len(body.faces))) ** 0.5 for p in x])
+    inside = np.array([winding_number(*p, body.vertices, body.faces) > 0.5 for p in x])
+    exact[inside] *= -1
+    assert np.abs(d - exact).max() < cell
+    far = np.abs(exact) > cell
+    assert np.array_equal(d[far] < 0, exact[far] < 0)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, rtol=1e-12)
+    # a convex body's distance is exact inside (the nearest face)
+    vb, fb = box_mesh((0.4, 0.2, 0.1))
+    box = RigidBody(vb, fb)
+    p = rng.uniform([-0.2, -0.1, -0.05], [0.2, 0.1, 0.05], size=(200, 3))
+    d, _ = box.signed_distance(p)
+    np.testing.assert_allclose(d, -np.min(np.abs(np.abs(p) - [0.2, 0.1, 0.05]), axis=1),
+                               atol=1e-15)
