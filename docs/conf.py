@@ -200,7 +200,8 @@ DOCSTRING_MENDS = {
          "the same\nvocabulary, plus ``\"rk2\"`` and ``\"rk4\"``):\n\n"),
     ],
     # |x| outside a literal is a reST substitution reference
-    "filters.noise.fractal.fbm_value_grad_hess": [("(no turbulence: |N| is", "(no turbulence: ``|N|`` is")],
+    "filters.noise.fractal.fbm_value_grad_hess": [("(no turbulence: |N| is",
+                                                   "(no turbulence: ``|N|`` is")],
     "filters.sph.particles.integrate": [("returns max |v| after", "returns max ``|v|`` after")],
 }
 

@@ -44,7 +44,7 @@ rings = np.arange(spacing, 0.6 + 1e-9, spacing)
 angles = [np.linspace(0, 2 * np.pi, max(6, int(2 * np.pi * r / spacing)), endpoint=False)
           for r in rings]
 xy = np.concatenate([[[0.0, 0.0]]] + [np.column_stack([r * np.cos(a + r), r * np.sin(a + r)])
-                                        for r, a in zip(rings, angles)])
+                                        for r, a in zip(rings, angles, strict=True)])
 disc = pv.PolyData(np.column_stack([xy, np.full(len(xy), 0.7)])).delaunay_2d()
 points = np.asarray(disc.points)
 triangles = disc.regular_faces  # (T, 3) vertex indices

@@ -82,7 +82,7 @@ for name, surface in (("union", union), ("intersection", boxed), ("difference", 
 plotter = pv.Plotter(shape=(2, 2), window_size=(900, 700), border=False)
 titles = ('operation="union", a Sphere', 'operation="intersection", a Box',
           'operation="difference", a Sphere', "combine_dense: Sphere - Box, union")
-for k, (title, surface) in enumerate(zip(titles, (union, boxed, bitten, arrays))):
+for k, (title, surface) in enumerate(zip(titles, (union, boxed, bitten, arrays), strict=True)):
     plotter.subplot(k // 2, k % 2)
     plotter.add_text(title, font_size=10)
     plotter.add_mesh(surface, color="#e0a95c", smooth_shading=True, split_sharp_edges=True,

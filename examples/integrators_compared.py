@@ -74,7 +74,7 @@ for scheme in schemes:
 
 chart = pv.Chart2D(x_label="time (s)", y_label="total energy (J)")
 colors = ("tab:red", "tab:blue", "tab:orange", "tab:green")
-for scheme, color in zip(schemes, colors):
+for scheme, color in zip(schemes, colors, strict=True):
     times = np.arange(len(energies[scheme])) * h
     chart.line(times, energies[scheme], color=color, width=3.0, label=scheme)
 chart.x_range = [0.0, duration]

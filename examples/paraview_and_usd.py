@@ -66,7 +66,8 @@ flow = Flow(SimulationSource(hair, fps=30, duration=0.5 if SMALL else 1.5), name
 flow.add_collider("head", head)
 paths = flow.run(OUT, progress=False)
 for path in sorted(OUT.iterdir()):
-    print(f"{path.name:<18} {'folder of frames' if path.is_dir() else f'{path.stat().st_size:,} bytes'}")
+    size = "folder of frames" if path.is_dir() else f"{path.stat().st_size:,} bytes"
+    print(f"{path.name:<18} {size}")
 
 # %%
 # The USD stage
@@ -90,7 +91,8 @@ code = stage.GetEndTimeCode()
 points = np.array(curves.GetPointsAttr().Get(code))
 counts = np.array(curves.GetCurveVertexCountsAttr().Get(code))
 starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-lines = np.concatenate([np.concatenate([[c], np.arange(s, s + c)]) for s, c in zip(starts, counts)])
+lines = np.concatenate([np.concatenate([[c], np.arange(s, s + c)])
+                        for s, c in zip(starts, counts, strict=True)])
 strands = pv.PolyData(points, lines=lines)
 print(f"{len(counts)} strands, {len(points)} points at time code {code:g}")
 

@@ -24,7 +24,7 @@ from pipeline.surface import reconstruct
 pv.OFF_SCREEN = True  # draw without a display
 
 SMALL = os.environ.get("BLOBFLOW_EXAMPLE_SMALL") == "1"  # the tests run every example small
-OUT = Path(os.environ.get("BLOBFLOW_EXAMPLES_OUT", "outputs/examples")) / "surface_of_your_particles"
+OUT = Path(os.environ.get("BLOBFLOW_EXAMPLES_OUT", "outputs/examples")) / "surface_of_particles"
 
 # %%
 # Particles
@@ -76,4 +76,4 @@ for column, (title, surface) in enumerate((("reconstruct(cloud, radius)", liquid
                      scalar_bar_args={"title": "speed (m/s)", "vertical": False})
     plotter.camera_position = [(0.33, -0.42, 0.27), (0.0, 0.0, 0.05), (0.0, 0.0, 1.0)]
 OUT.mkdir(parents=True, exist_ok=True)
-plotter.show(screenshot=OUT / "surface_of_your_particles.png")
+plotter.show(screenshot=OUT / "surface_of_particles.png")
