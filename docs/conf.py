@@ -4,9 +4,10 @@ Build: ``python -m sphinx -W -b html docs docs/_build/html`` (``-D plot_gallery=
 running the examples; the gallery pages then show their code without pictures).
 
 The API reference (``docs/api/generated/``, written at every build) follows the packages: every
-module of :mod:`pipeline` and :mod:`filters` found by walking their folders gets a page with its
-docstring, and every name of its ``__all__`` a page from its docstring (numpydoc), on the page
-of the module that defines it; a package that re-exports a name links to that page.
+package and module of :mod:`pipeline` and :mod:`filters`, found by walking their folders, gets a
+page with its docstring and a table of the names of its ``__all__``; every name is documented
+from its docstring (numpydoc) on the page of the module that defines it, and a package that
+re-exports a name links there. Reorganising the packages needs no change here.
 """
 
 from __future__ import annotations
@@ -58,7 +59,6 @@ nitpicky = False
 
 # -- API reference -------------------------------------------------------------------------
 autosummary_generate = False  # docs/conf.py writes the pages
-autosummary_imported_members = False
 autodoc_default_options = {"member-order": "bysource"}
 autodoc_typehints = "none"  # numpydoc's Parameters sections give the types, with shapes and units
 autodoc_class_signature = "separated"
@@ -297,6 +297,22 @@ sphinx_gallery_conf = {
     "default_thumb_file": str(HERE / "dam_break.png"),
     "thumbnail_size": (320, 240),
 }
+
+def _drop_stale_gallery_pages() -> None:
+    """Remove the gallery pages of examples that no longer exist (sphinx-gallery keeps them, and
+    a page in no toctree is a warning)."""
+    gallery = HERE / "gallery"
+    if not gallery.is_dir():
+        return
+    examples = {p.stem for p in (ROOT / "examples").glob("*.py")}
+    for page in gallery.iterdir():
+        stem = page.name.split(".")[0]
+        if page.is_file() and stem not in examples and stem not in ("index", "sg_execution_times"):
+            page.unlink()
+
+
+_drop_stale_gallery_pages()
+
 # The examples write their outputs under this folder when the gallery runs them, not into the
 # source tree (they write under ./outputs/examples when a user runs them).
 os.environ["BLOBFLOW_EXAMPLES_OUT"] = str(HERE / "_build" / "example_outputs")
@@ -314,6 +330,9 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }
+# pages without sections of their own: no section navigation; the benchmark table gets the width
+html_sidebars = {page: [] for page in ("index", "getting_started", "benchmarks", "design",
+                                       "changelog")}
 html_context = {"default_mode": "light"}
 html_show_sourcelink = False
 

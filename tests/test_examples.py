@@ -36,7 +36,7 @@ def run_example(path: Path, cwd: Path) -> subprocess.CompletedProcess:
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in env.get("PYTHONPATH", "")
                                                        .split(os.pathsep) if p])
     return subprocess.run([sys.executable, str(path)], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=240)
+                          text=True, timeout=280)
 
 
 def check_picture(path: Path) -> np.ndarray:
