@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
-from filters import OutputSpec, Simulation, State
-from filters.simulation import Frame
+from filters import Frame, OutputSpec, Simulation, State
 from pipeline import Flow, SimulationSource, read_series
 
 pv.OFF_SCREEN = True  # draw without a display
