@@ -20,8 +20,10 @@ def _folder(src_file) -> Path:
     return Path(os.environ["BLOBFLOW_EXAMPLES_OUT"]) / Path(src_file).stem
 
 
-def reset(gallery_conf, fname, *args) -> None:
-    """Before each example: remove its outputs of an earlier build."""
+def reset(gallery_conf, fname, when) -> None:
+    """Before each example (``when == "before"``): remove its outputs of an earlier build."""
+    if when != "before":
+        return
     shutil.rmtree(_folder(fname), ignore_errors=True)
     _reported.clear()
 
