@@ -272,11 +272,34 @@ def _summary_keeping_markup(doc, settings):
     return asm.literal_re.sub(".", summary)
 
 
+def _resolve_reexport(app, env, node, contnode):
+    """Resolve ``pipeline.Flow`` (a name a package re-exports, as users import it) to the page of
+    the module that defines it (``pipeline.compose.Flow``), also with an attribute after it."""
+    if node.get("refdomain") != "py" or not node.get("reftarget", "").startswith(
+            tuple(p + "." for p in API_PACKAGES)):
+        return None
+    parts = node["reftarget"].split(".")
+    for cut in range(len(parts) - 1, 0, -1):
+        try:
+            module = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        obj = getattr(module, parts[cut], None)
+        home = getattr(obj, "__module__", None)
+        if obj is None or not isinstance(home, str) or home == module.__name__:
+            return None
+        target = ".".join([home, *parts[cut:]])
+        return env.domains["py"].resolve_xref(env, node["refdoc"], app.builder,
+                                              node["reftype"], target, node, contnode)
+    return None
+
+
 def setup(app):
     from sphinx.ext import autosummary
 
     autosummary.extract_summary = _summary_keeping_markup
     app.connect("autodoc-process-docstring", _mend_docstring, priority=100)
+    app.connect("missing-reference", _resolve_reexport)
 
 
 # -- Gallery ------------------------------------------------------------------------------
@@ -321,7 +344,8 @@ os.environ["BLOBFLOW_EXAMPLES_OUT"] = str(HERE / "_build" / "example_outputs")
 html_theme = "pydata_sphinx_theme"
 html_title = "blobflow"
 html_logo = None
-html_static_path: list = []
+html_static_path = ["_static"]
+html_css_files = ["blobflow.css"]
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
