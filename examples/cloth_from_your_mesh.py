@@ -5,8 +5,8 @@ Cloth from your own mesh
 :class:`filters.elastic.mass_spring.ClothSimulation` makes a cloth of any triangle mesh: a
 stretch spring along every edge and a bending spring across every interior edge
 (:func:`filters.elastic.topology.cloth_from_mesh`), each vertex carrying a third of its
-triangles' mass.  Its contacts with colliders (planes, spheres, boxes) are solved inside every
-implicit step, with friction (the barrier of Li et al. 2020, IPC).  The same goes for hair
+triangles' mass.  Its contacts with colliders (planes, spheres, boxes) are solved inside the
+step of every scheme, with friction (the barrier of Li et al. 2020, IPC).  The same goes for hair
 (``HairSimulation`` from root points and directions) and jello
 (``JelloSimulation`` from a closed mesh).
 
