@@ -1,7 +1,7 @@
 """Frames keep their particles in one order, by ``id``: a particle is the same row in every frame,
 emitted particles come after the others and dead ones leave the rest in order, so that viewers
 interpolating between time samples by index (ParaView's TemporalInterpolator, USD) move every
-particle to the middle of its own path."""
+particle to the middle of its own path.  Frames stay lean: no checkpoint in them."""
 
 import json
 import os
@@ -17,7 +17,7 @@ from filters.simulation import Frame, OutputSpec, Simulation, State
 from pipeline import Flow, SimulationSource
 from pipeline.convert import frame_to_vtk, id_order
 from pipeline.scene import load_scene
-from pipeline.series import read_series
+from pipeline.series import read_collection, read_series
 
 HERE = Path(__file__).parent
 PVPYTHON = shutil.which("pvpython")
@@ -223,3 +223,18 @@ def test_paraview_temporal_interpolator_lands_on_the_id_matched_midpoint(drop_ru
     np.testing.assert_array_equal(np.asarray(seen["id"]), ids)
     np.testing.assert_allclose(np.asarray(seen["points"]), middle, rtol=0, atol=1e-12)
     assert np.abs(frames[k + 1].points - frames[k].points).max() > 0.01
+
+
+# -- lean frames ---------------------------------------------------------------------------
+def test_particle_frames_hold_no_state_and_at_most_100_bytes_a_particle(tmp_path):
+    """``drop`` at its default size (1,745 particles) through the impact: every frame file is
+    at most 100 bytes a particle (130 when each frame carried the simulation's state)."""
+    out = tmp_path / "drop"
+    flow, (times, frames) = _run_scene("drop", out, 16, fps=30.0, surface=False)
+    n = flow.source.simulation.state.n_points
+    assert n > 1500
+    for (t, name), frame in zip(read_collection(out / "particles.pvd"), frames):
+        assert list(frame.field_data.keys()) == ["TimeValue"]
+        size = (out / name).stat().st_size
+        assert size <= 100 * n, f"frame t = {t}: {size / n:.1f} bytes a particle"
+    assert sorted(frames[-1].point_data.keys()) == ["density", "id", "pressure", "velocity"]
