@@ -263,7 +263,10 @@ class NoiseAdvection(Simulation):
     extra arrays ``id`` (int64), ``age`` (s), ``lifetime`` (s), ``size``, ``color``, ``rng``
     (uint64 seed and counter), ``carry`` (fractional particles owed by the emitter) and
     ``next_id``.  Frames carry the point arrays ``velocity``, ``id``, ``age``, ``size`` and
-    ``color``.
+    ``color``.  Particles stay in ``id`` order: the newborn of a step get the next ids (from
+    ``next_id``, so ids are never reused) and are appended, the dead are removed without
+    reordering the others, so frames list the survivors of the previous frame in their order,
+    then the newborn.
     """
 
     variable_count = True

@@ -164,14 +164,15 @@ def _remove_previous_run(out: Path, record: dict) -> None:
     """Delete the series and renders a previous run of the same scene left in ``out``.
 
     Only the names blobflow writes are touched: ``NAME.pvd``, ``NAME.*.series``, ``NAME.xdmf``,
-    ``NAME.h5`` and the frames folder ``NAME/`` of each output the record lists, and the renders.
+    ``NAME.h5``, ``NAME.checkpoint.npz`` and the frames folder ``NAME/`` of each output the
+    record lists, and the renders.
     """
     import shutil
 
     names = [n for n in record.get("outputs", []) if isinstance(n, str) and n.isidentifier()]
     for name in names:
         for path in (out / f"{name}.pvd", out / f"{name}.xdmf", out / f"{name}.h5",
-                     *out.glob(f"{name}.*.series")):
+                     out / f"{name}.checkpoint.npz", *out.glob(f"{name}.*.series")):
             path.unlink(missing_ok=True)
         if (out / name).is_dir():
             shutil.rmtree(out / name)
@@ -362,6 +363,7 @@ def _usage_errors(command):
 def _cmd_info(args) -> int:
     import numpy as np
 
+    from .checkpoint import checkpoint_path
     from .convert import STATE_PREFIX
     from .series import SeriesError, read_series
 
@@ -381,8 +383,10 @@ def _cmd_info(args) -> int:
         names = [f"{n} ({attrs[n].shape[1] if attrs[n].ndim > 1 else 1})" for n in attrs.keys()]
         print(f"  {label} arrays: {', '.join(names) or 'none'}")
     fields = [n for n in first.field_data.keys() if not n.startswith(STATE_PREFIX)]
+    resumable = (checkpoint_path(path).is_file()
+                 or any(n.startswith(STATE_PREFIX) for n in first.field_data.keys()))
     print(f"  field arrays: {', '.join(fields) or 'none'}"
-          + ("; checkpointed (resumable)" if any(n.startswith(STATE_PREFIX) for n in first.field_data.keys()) else ""))
+          + ("; checkpointed (resumable)" if resumable else ""))
     bounds = np.array([d.bounds for d in datasets if d.n_points], dtype=float).reshape(-1, 6)
     if len(bounds):
         lo = bounds[:, 0::2].min(axis=0)

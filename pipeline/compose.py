@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import math
+import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
-from filters.validation import check_bool
+from filters.validation import check_bool, check_int, check_range
 
 from .algorithm import connect_chain, update
+from .checkpoint import (CHECKPOINT_SUFFIX, Checkpoint, CheckpointError, file_digest,
+                         read_checkpoint, write_checkpoint)
 from .colliders import COLLIDERS_FILE, Collider, write_colliders
 from .convert import has_state, state_from_dataset
 from .series import SeriesWriter, read_frame
@@ -226,33 +231,88 @@ class Flow:
             done = len(writer) if done is None else min(done, len(writer))
         return done or 0
 
-    def _resume_point(self, writers: dict[str, SeriesWriter]) -> int:
-        """Frames already complete in every series, after restoring the source to the last one."""
+    @property
+    def checkpoint_path(self) -> Path | None:
+        """The checkpoint file of a run in folder ``DIR``, relative: ``NAME.checkpoint.npz``
+        for the first output ``NAME`` (:mod:`pipeline.checkpoint`); ``None`` when the source
+        keeps none (``SimulationSource(checkpoint=False)``)."""
+        if not self.source.checkpoint:
+            return None
+        return Path(self._primary + CHECKPOINT_SUFFIX)
+
+    def _usable_checkpoint(self, directory: Path, writers: dict[str, SeriesWriter],
+                           done: int) -> Checkpoint | None:
+        """The checkpoint beside the series, if it belongs to a frame on disk in every series."""
+        relative = self.checkpoint_path
+        path = directory / relative if relative is not None else None
+        if path is None or not path.is_file():
+            return None
+        try:
+            checkpoint = read_checkpoint(path)
+        except CheckpointError as exc:
+            warnings.warn(f"{exc}; resuming from an earlier point", RuntimeWarning, stacklevel=3)
+            return None
+        index = checkpoint.frame
+        if index >= done or checkpoint.time != float(self.times[index]):
+            return None
+        if not set(writers) <= set(checkpoint.digests):
+            return None
+        for name, writer in writers.items():
+            frame = writer.path.parent / writer.entries[index][1]
+            if not frame.is_file() or file_digest(frame) != checkpoint.digests[name]:
+                return None  # a checkpoint of other frames (another run in this folder)
+        return checkpoint
+
+    def _resume_point(self, directory: Path, writers: dict[str, SeriesWriter]) -> tuple[int, int]:
+        """Restore the source for resuming; return ``(restart, done)``.
+
+        ``done`` frames are complete in every series (the longer ones are cut to it); the
+        source is left at frame ``restart - 1`` (or rewound when ``restart`` is 0), from where
+        the frames ``restart .. done - 1`` are simulated again without being written.  The
+        state comes from the checkpoint beside the series, or, for series written before
+        checkpoints left the frames, from the ``state:*`` field data of the last frame.
+        """
         done = min(len(w) for w in writers.values())
-        times = list(self.times)
-        while done > 0:
-            primary = writers.get(self._primary)
-            candidates = [primary] if primary is not None else list(writers.values())
-            for writer in candidates:
-                t, name = writer.entries[done - 1]
-                if done - 1 >= len(times) or t != times[done - 1]:
+        times = [float(t) for t in self.times]
+        for writer in writers.values():
+            for index, (t, _) in enumerate(writer.entries[:done]):
+                if index >= len(times) or t != times[index]:
                     raise ValueError(
                         f"the series on disk was written with other frame times ({t} s at frame "
-                        f"{done - 1}); run without resume, or with the same fps"
+                        f"{index}); run without resume, or with the same fps"
                     )
-                data = read_frame(writer.path.parent / name)
-                if has_state(data):
-                    self.source.restore(state_from_dataset(data))
-                    for w in writers.values():
-                        w.truncate(done)
-                    return done
-            done -= 1  # no checkpoint in that frame: cannot resume from it
         for w in writers.values():
+            w.truncate(done)
+        if done == 0:
+            return 0, 0
+        checkpoint = self._usable_checkpoint(directory, writers, done)
+        if checkpoint is not None:
+            self.source.restore(checkpoint.state)
+            return checkpoint.frame + 1, done
+        # a series written when every frame carried the state (no checkpoint file beside it;
+        # the first resume writes one): its last frame has one
+        primary = writers.get(self._primary) or next(iter(writers.values()))
+        last = read_frame(primary.path.parent / primary.entries[done - 1][1])
+        if has_state(last):
+            state = state_from_dataset(last)
+            self.source.restore(state)
+            if self.checkpoint_path is not None:
+                self._save_checkpoint(directory, writers, done - 1, state)
+            return done, done
+        for w in writers.values():  # nothing to resume from: start again
             w.truncate(0)
-        return 0
+        return 0, 0
+
+    def _save_checkpoint(self, directory: Path, writers: dict[str, SeriesWriter], index: int,
+                         state) -> None:
+        digests = {name: file_digest(w.path.parent / w.entries[index][1])
+                   for name, w in writers.items()}
+        write_checkpoint(directory / self.checkpoint_path,
+                         Checkpoint(state, index, float(self.times[index]), digests))
 
     def run(self, directory, *, resume: bool = False, progress: bool = True,
-            on_frame=None) -> dict[str, Path]:
+            on_frame=None, checkpoint_every: int = 10,
+            checkpoint_seconds: float = 300.0) -> dict[str, Path]:
         """Run every frame and write each written output as a series in ``directory``.
 
         Parameters
@@ -260,13 +320,22 @@ class Flow:
         directory : str or Path
             Output folder (created).  Output ``NAME`` goes to ``directory/NAME.pvd``.
         resume : bool
-            Continue series already in ``directory`` from their last complete frame, restoring
-            the simulation from the checkpoint stored in it.  The result is bitwise identical to
-            a run that was never interrupted.
+            Continue series already in ``directory``: from the checkpoint beside them
+            (:attr:`checkpoint_path`), simulating again without writing the frames after it
+            that are already on disk, or, for series written by earlier versions, from the
+            state in their last frame.  The result is bitwise identical to a run that was never
+            interrupted, wherever it stopped.
         progress : bool
             Show a tqdm progress bar over frames.
         on_frame : callable, optional
-            Called as ``on_frame(index, time)`` after each frame is written.
+            Called as ``on_frame(index, time)`` after each frame is written (and its checkpoint,
+            when it has one).
+        checkpoint_every : int
+            Keep a checkpoint of the simulation at frame 0, every ``checkpoint_every`` frames
+            (>= 1), at the last frame, and at the last frame written when the run stops on an
+            error or Ctrl-C; only the newest is kept, replaced atomically.
+        checkpoint_seconds : float
+            Also keep one after a frame when this much wall time (s, > 0) passed since the last.
 
         Returns
         -------
@@ -275,27 +344,57 @@ class Flow:
             any, are in ``directory/colliders.vtp``).
         """
         directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
+        checkpoint_every = check_int("checkpoint_every", checkpoint_every, 1)
+        checkpoint_seconds = check_range("checkpoint_seconds", checkpoint_seconds, 0.0,
+                                         math.inf, low_inclusive=False)
         written = [s for s in self.stages.values() if s.write]
         if not written:
             raise ValueError("no output is marked to be written")
+        directory.mkdir(parents=True, exist_ok=True)
         if self.colliders:
             write_colliders(self.colliders, directory / COLLIDERS_FILE)
         writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}
-        start = self._resume_point(writers) if resume else 0
-        if start == 0:
+        keep = self.checkpoint_path
+        restart, done = self._resume_point(directory, writers) if resume else (0, 0)
+        if restart == 0:
             self.source.rewind()
+            if keep is not None:  # a checkpoint of another run must never be resumed from
+                (directory / keep).unlink(missing_ok=True)
         times = self.times
-        bar = tqdm(total=len(times), initial=start, unit="frame", disable=not progress,
+        bar = tqdm(total=len(times), initial=done, unit="frame", disable=not progress,
                    desc=f"{directory.name or 'run'}", leave=True)
+        saved, saved_at = restart - 1, time.monotonic()
+        index = restart - 1  # the last frame complete in every series
         try:
-            for index in range(start, len(times)):
+            for index in range(restart, len(times)):
                 t = float(times[index])
-                for stage in written:
-                    writers[stage.name].write(self._output(stage.name, t), t)
-                bar.update(1)
-                if on_frame is not None:
-                    on_frame(index, t)
+                if index < done:  # on disk already: simulated again, not written
+                    self._output(self._primary, t)
+                else:
+                    for stage in written:
+                        writers[stage.name].write(self._output(stage.name, t), t)
+                if keep is not None and (index % checkpoint_every == 0 or index == len(times) - 1
+                                         or time.monotonic() - saved_at >= checkpoint_seconds):
+                    self._save_checkpoint(directory, writers, index,
+                                          self.source.simulation.get_state())
+                    saved, saved_at = index, time.monotonic()
+                if index >= done:
+                    bar.update(1)
+                    if on_frame is not None:
+                        on_frame(index, t)
+        except BaseException:
+            # stopped (an error, Ctrl-C): keep a checkpoint of the last frame written, from the
+            # state the source cached after making it, so that a resume starts there
+            last = min(index, min(len(w) for w in writers.values()) - 1)
+            if keep is not None and last > saved and last >= done - 1:
+                state = self.source.state_at(float(times[last]))
+                if state is not None:
+                    try:
+                        self._save_checkpoint(directory, writers, last, state)
+                    except Exception as exc:  # noqa: BLE001 - the run's own error matters more
+                        warnings.warn(f"no checkpoint kept at frame {last}: {exc}",
+                                      RuntimeWarning, stacklevel=2)
+            raise
         finally:
             bar.close()
         for stage in written:

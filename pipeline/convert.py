@@ -1,7 +1,16 @@
 """Turn simulation frames (plain arrays) into VTK datasets and back.
 
-Checkpoints travel in field data: every array of :meth:`filters.State.to_arrays` is stored as a
-field-data array named ``state:NAME``, bit for bit, beside the field array ``TimeValue``.
+Frames leave the simulation in one particle order: by their ``id`` array when they have one
+(:func:`id_order`), so that a particle is the same row in every frame and viewers that
+interpolate between time samples by index (ParaView's TemporalInterpolator, USD, motion blur)
+move each particle to where it belongs; emitted particles come after the older ones (their ids
+are larger) and dead ones leave the rest in order.
+
+Checkpoints live beside a series (:mod:`pipeline.checkpoint`), not in its frames.  Series written
+by earlier versions carry one in every frame's field data: every array of
+:meth:`filters.State.to_arrays` as a field-data array named ``state:NAME``, bit for bit, beside
+the field array ``TimeValue``; :func:`has_state` and :func:`state_from_dataset` read them, so that
+those runs can still be resumed.
 """
 
 from __future__ import annotations
@@ -21,6 +30,7 @@ from filters.simulation import Frame, OutputSpec, State
 
 __all__ = [
     "frame_to_vtk",
+    "id_order",
     "state_to_field_data",
     "state_from_dataset",
     "has_state",
@@ -58,7 +68,11 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
     if not np.isfinite(frame.points).all():
         raise ValueError(f"frame at t = {frame.time} has non-finite points")
     names = {name for name, _ in spec.point_arrays}
+    n = np.shape(frame.points)[0]
     for name, values in frame.point_data.items():
+        if np.shape(values)[:1] != (n,):
+            raise ValueError(f"point array {name!r} has shape {np.shape(values)}; a frame of "
+                             f"{n} points needs {n} rows")
         if np.issubdtype(np.asarray(values).dtype, np.floating) and not np.isfinite(values).all():
             raise ValueError(f"frame at t = {frame.time} has non-finite values in {name!r}")
     for name, values in frame.field_data.items():
@@ -79,6 +93,71 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
                          f"lists")
 
 
+def id_order(ids) -> np.ndarray | None:
+    """The permutation that puts particles in increasing ``id`` order, or ``None`` if they are.
+
+    Parameters
+    ----------
+    ids : (M,) array_like of int or float
+        The ``id`` of every point (an ``(M, 1)`` column is accepted).
+
+    Returns
+    -------
+    (M,) int64 array or None
+        ``order`` such that ``ids[order]`` increases (equal ids keep their relative order);
+        ``None`` when ``ids`` already strictly increases, the common case of a simulation that
+        keeps its particles in order.
+
+    Notes
+    -----
+    Unique non-negative integer ids below ``2 M`` (a permutation of ``0 .. M-1``, or ids with
+    gaps from dead particles) are ordered by scattering them into a table, in O(M); any other
+    ids by a stable sort.
+    """
+    ids = np.asarray(ids)
+    if ids.ndim == 2 and ids.shape[1] == 1:
+        ids = ids[:, 0]
+    if ids.ndim != 1:
+        raise ValueError(f"ids must have shape (M,), got {ids.shape}")
+    n = ids.shape[0]
+    if n < 2 or bool(np.all(ids[1:] > ids[:-1])):
+        return None
+    if np.issubdtype(ids.dtype, np.integer):
+        low, high = int(ids.min()), int(ids.max())
+        if low >= 0 and high < 2 * n:
+            rank = np.full(high + 1, -1, dtype=np.int64)
+            rank[ids] = np.arange(n, dtype=np.int64)
+            order = rank[rank >= 0]
+            if order.shape[0] == n:  # the ids were unique
+                return order
+    return np.argsort(ids, kind="stable").astype(np.int64, copy=False)
+
+
+def _in_id_order(frame: Frame, vertices: bool) -> Frame:
+    """``frame`` with its points, point data (and the cells of ``vertices``) in ``id`` order."""
+    ids = frame.point_data.get("id")
+    if ids is None:
+        return frame
+    order = id_order(ids)
+    if order is None:
+        return frame
+    points = np.asarray(frame.points)[order]
+    point_data = {name: np.asarray(values)[order] for name, values in frame.point_data.items()}
+    connectivity, cell_data = frame.connectivity, frame.cell_data
+    if vertices:  # one vertex cell per point: the cells follow their points
+        connectivity = None
+        if cell_data:
+            cell_data = {name: np.asarray(values)[order] for name, values in cell_data.items()}
+    else:  # cells keep their order; their point indices follow
+        rank = np.empty_like(order)
+        rank[order] = np.arange(order.shape[0], dtype=np.int64)
+        offsets, indices = connectivity
+        connectivity = (offsets, rank[np.asarray(indices, dtype=np.int64)])
+    return Frame(time=frame.time, points=points, point_data=point_data,
+                 connectivity=connectivity, cell_types=frame.cell_types, cell_data=cell_data,
+                 field_data=frame.field_data)
+
+
 def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     """Build a VTK dataset from a :class:`filters.Frame`.
 
@@ -97,7 +176,8 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     -------
     vtkPolyData or vtkUnstructuredGrid
         With the point arrays named as in ``spec``, the frame's field arrays and a
-        ``TimeValue`` field array.
+        ``TimeValue`` field array; the points in increasing ``id`` order when the frame has an
+        ``id`` point array (:func:`id_order`; cells keep their order and follow their points).
     """
     dataset = dataset or spec.dataset
     if dataset not in ("polydata", "unstructured"):
@@ -105,6 +185,7 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     if spec.topology == "cells" and dataset != "unstructured":
         raise ValueError("volumetric cells need dataset='unstructured'")
     _check_frame(frame, spec)
+    frame = _in_id_order(frame, spec.topology == "vertices" or frame.connectivity is None)
     n = frame.points.shape[0]
     points = vtkPoints()
     points.SetData(_to_vtk_array("Points", np.asarray(frame.points, dtype=np.float64)))

@@ -13,7 +13,7 @@ from filters.simulation import TIME_DECIMALS, Simulation, State, frame_times
 from filters.validation import check_bool, check_choice, check_int
 
 from .algorithm import Algorithm
-from .convert import frame_to_vtk, state_to_field_data
+from .convert import frame_to_vtk
 
 __all__ = ["SimulationSource"]
 
@@ -29,6 +29,11 @@ class SimulationSource(Algorithm):
     ``UPDATE_TIME_STEP``, it advances the simulation from its current state; asked for an earlier
     time, it restores the latest cached frame state at or before that time instead of simulating
     again from 0.  Asking twice for the same time does not step.
+
+    Its outputs keep their particles in one order, by ``id`` (:func:`pipeline.convert.id_order`),
+    whatever order the simulation keeps them in, and carry what a viewer needs, not the
+    simulation's state: a :class:`Flow` keeps a checkpoint beside the series it writes
+    (:mod:`pipeline.checkpoint`).
 
     Parameters
     ----------
@@ -46,8 +51,9 @@ class SimulationSource(Algorithm):
     dataset : {"polydata", "unstructured"}, optional
         Output type; the simulation's natural type when omitted.
     checkpoint : bool
-        Store the simulation state in each output's field data (``state:*`` arrays) so that a
-        written series can be resumed from any frame.
+        Whether a :meth:`Flow.run <pipeline.compose.Flow.run>` of this source keeps a
+        checkpoint of the simulation beside its series, so that the run can be resumed
+        (``resume=True``); the frames never carry one.
 
     Attributes
     ----------
@@ -145,8 +151,12 @@ class SimulationSource(Algorithm):
             output.ShallowCopy(self._last_output[1])
             output.GetInformation().Set(vtkDataObject.DATA_TIME_STEP(), t)
             return 1
-        self.go_to(t)
+        self._go_to(t)
         data = self.current_dataset()
+        # remembered after the frame: a simulation may tidy its state while making one (SPH
+        # sorts its particles by cell), and a run continued from this state (a checkpoint, a
+        # step back in time) must continue from what an uninterrupted run had
+        self._remember(self.simulation.get_state())
         output.ShallowCopy(data)
         output.GetInformation().Set(vtkDataObject.DATA_TIME_STEP(), t)
         self._last_output = (t, data)
@@ -155,6 +165,10 @@ class SimulationSource(Algorithm):
     # -- time travel ---------------------------------------------------------------------------
     def go_to(self, t: float) -> None:
         """Bring the simulation to time ``t``, from the cache when ``t`` is in the past."""
+        self._go_to(t)
+        self._remember(self.simulation.get_state())
+
+    def _go_to(self, t: float) -> None:
         sim = self.simulation
         if sim.state.time > t:
             sim.set_state(self._cached_before(t))
@@ -164,15 +178,21 @@ class SimulationSource(Algorithm):
                 sim.set_state(cached)
         if sim.state.time < t:
             sim.advance_to(t)
-        self._remember(sim.get_state())
 
     def current_dataset(self):
-        """The simulation's current frame as a VTK dataset (with checkpoint field data)."""
+        """The simulation's current frame as a VTK dataset, its particles in ``id`` order."""
         sim = self.simulation
-        data = frame_to_vtk(sim.frame(), sim.output_spec, self.dataset)
-        if self.checkpoint:
-            state_to_field_data(data, sim.state)
-        return data
+        return frame_to_vtk(sim.frame(), sim.output_spec, self.dataset)
+
+    def state_at(self, t: float) -> State | None:
+        """A copy of the state cached at time ``t`` (s) after its frame was made, or ``None``.
+
+        The initial state is not returned for time 0: a simulation may change its state while
+        making a frame (SPH sorts its particles), so only the state after the frame is what a
+        run continues from.
+        """
+        state = self._cache.get(t)
+        return None if state is None else state.copy()
 
     def _cached_before(self, t: float) -> State:
         best = self._initial if self._initial.time <= t else None

@@ -397,8 +397,9 @@ def test_10_folder_of_another_scene_is_refused_and_reruns_leave_nothing_stale(tm
     notes.write_text("mine")
     _bouncing(tmp_path, capsys)
     left = sorted(p.name for p in out.iterdir())
-    assert left == ["colliders.vtp", "my_notes.txt", "particles", "particles.pvd",
-                    "particles.vtp.series", "scene.json"]  # colliders.vtp: the new run's floor
+    assert left == ["colliders.vtp", "my_notes.txt", "particles", "particles.checkpoint.npz",
+                    "particles.pvd", "particles.vtp.series", "scene.json"]  # colliders.vtp: the
+    # new run's floor; the checkpoint: the new run's (pipeline.checkpoint)
 
 
 # -- property test: bad --set values for every parameter of every scene ----------------------------

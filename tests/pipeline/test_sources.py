@@ -8,7 +8,7 @@ from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters import BallisticParticles, frame_times
 from pipeline import SimulationSource
-from pipeline.convert import dataset_time, state_from_dataset
+from pipeline.convert import dataset_time, has_state
 
 
 def _sim():
@@ -76,15 +76,19 @@ def test_bounded_cache_restores_nearest_earlier_state():
     assert sim.steps_taken - before == 6
 
 
-def test_output_carries_arrays_and_checkpoint():
+def test_output_carries_arrays_not_the_state_which_the_source_keeps():
     source = SimulationSource(_sim(), fps=30, duration=1.0)
     out = _output_at(source, 0.2)
     assert out.GetNumberOfPoints() == 5 and out.GetNumberOfVerts() == 5
     assert out.GetPointData().GetArray("velocity").GetNumberOfComponents() == 3
     assert out.GetPointData().GetArray("id") is not None
-    state = state_from_dataset(out)
+    assert not has_state(out)  # the checkpoint lives beside a written series, not in frames
+    assert [out.GetFieldData().GetArrayName(i)
+            for i in range(out.GetFieldData().GetNumberOfArrays())] == ["TimeValue"]
+    state = source.state_at(0.2)  # cached after the frame was made
     assert state.time == 0.2
     np.testing.assert_array_equal(state.positions, np.asarray(out.GetPoints().GetData()))
+    assert source.state_at(0.1) is None  # never asked for
 
 
 def test_any_vtk_filter_downstream_sees_the_requested_time():
