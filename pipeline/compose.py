@@ -13,6 +13,7 @@ from filters.validation import check_bool
 from .algorithm import connect_chain, update
 from .colliders import COLLIDERS_FILE, Collider, write_colliders
 from .convert import has_state, state_from_dataset
+from .folderlock import holds_folder
 from .series import SeriesWriter, read_frame
 from .xdmf import export_xdmf
 from .sources import SimulationSource
@@ -251,6 +252,7 @@ class Flow:
             w.truncate(0)
         return 0
 
+    @holds_folder("directory")  # one writer per folder (pipeline.folderlock)
     def run(self, directory, *, resume: bool = False, progress: bool = True,
             on_frame=None) -> dict[str, Path]:
         """Run every frame and write each written output as a series in ``directory``.
