@@ -183,21 +183,14 @@ def _write_points(data, path):
 
 
 def _written_elsewhere(folder):
-    """Whether another process holds blobflow's lock on ``folder`` (``.blobflow.lock``, see
-    pipeline/folderlock.py): another source's run writes there, and its frames will come."""
+    """Whether a live process holds blobflow's lock on ``folder`` (pipeline/folderlock.py):
+    another source's run writes there, and its frames will come."""
     try:
         owner = json.loads((Path(folder) / ".blobflow.lock").read_text(encoding="utf-8"))
-        pid = int(owner["pid"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-    if owner.get("host") != socket.gethostname():
-        return True  # a shared folder written from another machine: cannot be checked here
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True
+        if owner.get("host") == socket.gethostname():  # another machine's: cannot be checked
+            os.kill(int(owner["pid"]), 0)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        return isinstance(exc, PermissionError)  # alive, someone else's; else none or dead
     return True
 
 

@@ -250,18 +250,25 @@ class _Checker:
         """Fill ``available`` (values held), ``buffer`` and, for offsets, ``last_value``."""
         if array.fmt == "ascii":
             start, stop = array.content or (0, 0)
-            tokens = re.findall(rb"\S+", self.data[start:stop])
-            array.available = len(tokens)
-            if array.name.endswith("offsets") and tokens:
+            array.available = _count_tokens(self.data, start, stop)
+            if array.name.endswith("offsets") and array.available:
+                last = _last_token(self.data, start, stop)
                 try:
-                    array.last_value = int(tokens[-1])
+                    array.last_value = int(last)
                 except ValueError:
-                    self.fail(f"offsets array {array.name!r} ends in {tokens[-1][:20]!r}")
+                    self.fail(f"offsets array {array.name!r} ends in {last[:20]!r}")
             return
         if array.fmt == "binary":
             start, stop = array.content or (0, 0)
-            text = _WS.sub(b"", self.data[start:stop])
-            reader = _Base64(self, text, 0, len(text), array.name)
+            while start < stop and self.data[start:start + 1].isspace():
+                start += 1
+            while stop > start and self.data[stop - 1:stop].isspace():
+                stop -= 1
+            if _WS.search(self.data, start, stop):  # wrapped lines: read without the breaks
+                text = _WS.sub(b"", self.data[start:stop])
+                reader = _Base64(self, text, 0, len(text), array.name)
+            else:  # as VTK writes it: read in place, no copy
+                reader = _Base64(self, self.data, start, stop, array.name)
         elif layout.appended[1] == "raw":
             reader = _Raw(self, layout.appended[0] + array.offset, self.size, array.name)
         else:
@@ -451,6 +458,37 @@ class _Base64:
             return self._decode(self._data_start(), n)[:n]
         # the length word and the data are one block: decode both, drop the word
         return self._decode(self.start, self.used + n)[self.used:self.used + n]
+
+
+_CHUNK = 1 << 26  # bytes of ascii data counted at a time
+
+
+def _count_tokens(data, start: int, stop: int) -> int:
+    """Whitespace-separated tokens in ``data[start:stop]``, counted in chunks (memory stays
+    bounded whatever the file's size)."""
+    import numpy as np
+
+    count, previous_space = 0, True
+    for lo in range(start, stop, _CHUNK):
+        chunk = np.frombuffer(data[lo:min(lo + _CHUNK, stop)], dtype=np.uint8)
+        space = (chunk == 32) | ((chunk >= 9) & (chunk <= 13))
+        starts = ~space
+        starts[1:] &= space[:-1]
+        starts[0] &= previous_space
+        count += int(np.count_nonzero(starts))
+        previous_space = bool(space[-1])
+    return count
+
+
+def _last_token(data, start: int, stop: int) -> bytes:
+    """The last whitespace-separated token of ``data[start:stop]``."""
+    end = stop
+    while end > start and data[end - 1:end].isspace():
+        end -= 1
+    begin = end
+    while begin > start and not data[begin - 1:begin].isspace() and end - begin < 64:
+        begin -= 1
+    return bytes(data[begin:end])
 
 
 def _decompress(checker: _Checker, compressor: str, data: bytes, expected: int, name: str) -> bytes:
