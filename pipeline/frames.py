@@ -52,6 +52,7 @@ __all__ = [
     "check_provenance",
     "provenance_path",
     "CONNECT_TIMEOUT",
+    "PROBE_TIMEOUT",
 ]
 
 
@@ -125,7 +126,11 @@ def _run_task(task, in_file: str, out_file: str, time: float, options: dict) -> 
 _HANDSHAKE_LIMIT = 2**20
 
 
-def _probe_scheduler(address: str, timeout: float = 5.0) -> None:
+#: Seconds a scheduler has to send its whole handshake (:func:`_probe_scheduler`).
+PROBE_TIMEOUT = 5.0
+
+
+def _probe_scheduler(address: str, timeout: float | None = None) -> None:
     """Check that a ``tcp://`` address answers like a Dask scheduler, before Dask connects.
 
     A Dask server writes a handshake as soon as it accepts a connection: an 8-byte
@@ -147,6 +152,7 @@ def _probe_scheduler(address: str, timeout: float = 5.0) -> None:
         raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}") from None
     if not host or not 0 < port < 65536:
         raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}")
+    timeout = PROBE_TIMEOUT if timeout is None else timeout
     deadline = time.monotonic() + timeout
     try:
         sock = socket.create_connection((host, port), timeout=timeout)
@@ -236,7 +242,9 @@ def connect(scheduler: str | None = None, workers: int | None = None):
     Raises
     ------
     SchedulerError
-        If Dask is not installed or the scheduler does not answer within 10 s.
+        If Dask is not installed, the address does not send a whole Dask handshake within
+        :data:`PROBE_TIMEOUT` seconds, or the client has not started
+        :data:`CONNECT_TIMEOUT` + 5 seconds later.
     ValueError
         For ``workers < 1`` or both arguments.
     """

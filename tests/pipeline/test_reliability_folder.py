@@ -343,7 +343,9 @@ def test_14_sigterm_removes_temporary_files_and_releases_the_folder(tmp_path, ca
     process = subprocess.Popen([sys.executable, "-m", "pipeline", *argv], stderr=subprocess.PIPE,
                                text=True, env=_env())
     deadline = time.monotonic() + 200
-    while not (watched.is_dir() and any(is_temporary_name(p.name) for p in watched.iterdir())):
+    started = out / "particles.pvd" if command == "run" else out  # a frame is on disk
+    while not (started.exists() and watched.is_dir()
+               and any(is_temporary_name(p.name) for p in watched.iterdir())):
         assert process.poll() is None and time.monotonic() < deadline, process.communicate()
         time.sleep(0.005)
     process.send_signal(signal.SIGTERM)

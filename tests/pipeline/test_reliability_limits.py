@@ -179,21 +179,26 @@ def _server(reply: bytes, trickle: float = 0.0):
 
 
 @pytest.mark.timeout(120)
-def test_8_a_scheduler_that_stalls_mid_handshake_is_refused_within_the_promise(tmp_path, capsys):
+def test_8_a_scheduler_that_stalls_mid_handshake_is_refused_within_the_promise(tmp_path, capsys,
+                                                                             monkeypatch):
     pytest.importorskip("dask.distributed")
+    import pipeline.frames
+
+    monkeypatch.setattr(pipeline.frames, "PROBE_TIMEOUT", 1.5)  # 5 s by default: a fast test
     series = _cloud_series(tmp_path, [np.random.default_rng(1).uniform(0, 0.1, (30, 3))])
     frames = struct.pack("<QQQ", 2, 40, 40)  # two frames of 40 bytes announced, none sent
     replies = [struct.pack("<Q", 100) + b"\x01\x02",  # a part of the first block
                struct.pack("<Q", len(frames)) + frames,  # the block, then not the frames
-               struct.pack("<Q", 24) + frames]  # the same, one byte a second (trickled)
+               struct.pack("<Q", 24) + frames]  # the same, a byte every 0.4 s (trickled)
     for k, reply in enumerate(replies):
-        server = _server(reply, trickle=1.0 if k == 2 else 0.0)
+        server = _server(reply, trickle=0.4 if k == 2 else 0.0)
         try:
             start = time.monotonic()
             code, _, err = _cli(capsys, "surface", series, "--out", tmp_path / "s", "--quiet",
                                 "--scheduler", f"tcp://127.0.0.1:{server.getsockname()[1]}")
-            assert code == 2 and "not a Dask scheduler" in _one_error_line(err)
-            assert time.monotonic() - start < 10.0
+            line = _one_error_line(err)
+            assert code == 2 and "not a Dask scheduler" in line and "within 1.5 s" in line, line
+            assert time.monotonic() - start < 5.0
         finally:
             server.close()
     assert not (tmp_path / "s").exists()
