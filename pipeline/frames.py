@@ -36,7 +36,7 @@ from filters.validation import check_int
 from .folderlock import holds_folder
 from .outfiles import (atomic_path, frame_names, frames_folder, remove_frames,
                        sweep_temporaries)
-from .series import SeriesError, SeriesWriter, read_collection, read_frame, write_frame
+from .series import SeriesWriter, read_collection, read_frame, write_frame
 
 __all__ = [
     "FrameFailure",

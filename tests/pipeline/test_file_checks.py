@@ -23,7 +23,7 @@ import pytest
 import pyvista as pv
 
 from pipeline.cli import main
-from pipeline.series import SeriesError, read_frame, write_frame
+from pipeline.series import read_frame, write_frame
 from pipeline.xmlcheck import UnsafeFileError, check_vtk_xml
 
 from _crafted import (COMPRESSORS, ENCODINGS, huge_block_header, huge_last_offset,

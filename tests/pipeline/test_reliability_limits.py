@@ -287,7 +287,7 @@ def test_13_limits_are_computed_from_the_machine_and_stated(tmp_path, capsys, mo
     code, _, err = _cli(capsys, "render", series, "--turntable", "100000000", "--out",
                         tmp_path / "t.gif", "--quiet")
     line = _one_error_line(err)
-    assert code == 2 and f"100000000 views are more than" in line and str(views) in line, line
+    assert code == 2 and "100000000 views are more than" in line and str(views) in line, line
     monkeypatch.setenv(MEMORY_ENV, "8M")
     code, _, err = _cli(capsys, "render", series, "--out", tmp_path / "m.gif", "--size",
                         "1920x1080", "--quiet")
