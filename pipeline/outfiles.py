@@ -4,7 +4,8 @@ Every writer and every clean-up goes through this module, so that only files blo
 ever removed:
 
 * a series ``NAME`` is ``NAME.pvd``, ``NAME.vtp.series`` (``.vtu``/``.vti``), ``NAME.xdmf``,
-  ``NAME.h5``, ``NAME.source.json`` (what a surface series was computed from) and its frames ``NAME/NAME_<digits>.vtp`` (``.vtu``/``.vti``): a frame is removed
+  ``NAME.h5``, ``NAME.source.json`` (what a surface series was computed from),
+  ``NAME.checkpoint.npz`` (a run's checkpoint) and its frames ``NAME/NAME_<digits>.vtp`` (``.vtu``/``.vti``): a frame is removed
   only when its name matches :func:`is_frame_name` exactly (never every ``NAME_*``), and the
   frames folder only when it is left empty;
 * a file is written under a temporary name unique to the process (:func:`temporary_path`:
@@ -106,6 +107,7 @@ def series_files(directory, name: str) -> list[Path]:
     """The files of series ``name`` directly in ``directory`` (collections, XDMF) that exist."""
     directory = Path(directory)
     names = [f"{name}.pvd", f"{name}.xdmf", f"{name}.h5", f"{name}.source.json",
+             f"{name}.checkpoint.npz",
              *(f"{name}{suffix}.series" for suffix in FRAME_SUFFIXES)]
     return [directory / n for n in names if (directory / n).is_file()
             or (directory / n).is_symlink()]
