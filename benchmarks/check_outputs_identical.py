@@ -2,7 +2,8 @@
 
 Runs every scene (and its variants: solvers, integrators, isotropic and anisotropic surfaces)
 through the command line at small, fast parameters, plus ``blobflow surface`` runs over a written
-particle series, and records a SHA-256 digest of every file written:
+particle series, and records a SHA-256 digest of every file written (but the provenance records
+``NAME.source.json`` of ``surface`` runs, which hold the machine's paths and times):
 
 * ``raw``: the file's bytes;
 * ``decoded`` (VTK XML frames): points, cells and every point, cell and field array (name,
@@ -186,7 +187,10 @@ def _renamed(record: dict) -> dict:
 def digest_folder(folder: Path) -> dict:
     """``{relative path: {"raw": sha, "decoded": sha or None}}`` of every file below ``folder``."""
     files = {}
-    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+    # NAME.source.json records where a `surface` run's input is and when its frames were
+    # written (absolute paths, modification times): provenance for --resume, not an output
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()
+                       and not p.name.endswith(".source.json")):
         rel = path.relative_to(folder).as_posix()
         entry = {"raw": _sha(path.read_bytes()), "decoded": None}
         if path.suffix in (".vtp", ".vtu", ".vti"):

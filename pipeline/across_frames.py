@@ -15,7 +15,6 @@ the particles do not explain from 1.26x pysplashsurf's to 1.08x.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ from filters.surface.temporal import follow_particles_across_frames, vertex_norm
 from filters.validation import check_int
 
 from .contour import polydata_to_mesh
+from .outfiles import frames_folder, remove_series
 from .series import read_collection, read_frame, write_frame
 
 __all__ = ["smooth_series_across_frames", "across_frames_frame", "weights_across"]
@@ -139,7 +139,7 @@ def smooth_series_across_frames(particles_path, output_path, frames: int, surfac
     output_path = Path(output_path)
     entries = read_collection(particles_path)
     name = output_path.stem
-    hidden = output_path.parent / f"_{name}_single"
+    hidden = frames_folder(output_path.parent, f"_{name}_single")  # a link is refused
     single_path = hidden / f"{name}.pvd"
     complete = resume and all(frame_done(output_path.parent / f"{name}/{name}_{i:06d}.vtp")
                               for i in range(len(entries)))
@@ -161,5 +161,11 @@ def smooth_series_across_frames(particles_path, output_path, frames: int, surfac
     result = map_frames(particles_path, output_path, across_frames_frame, options, client=client,
                         resume=resume, progress=progress)
     # the single-frame surfaces are only the first pass's: gone once every frame is written
-    shutil.rmtree(hidden, ignore_errors=True)
+    # (what blobflow wrote there, by the one rule of pipeline.outfiles: other files stay)
+    if hidden.is_dir():
+        remove_series(hidden, name)
+        try:
+            hidden.rmdir()
+        except OSError:
+            pass
     return result

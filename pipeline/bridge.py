@@ -30,7 +30,7 @@ import json
 import sys
 from pathlib import Path
 
-__all__ = ["describe", "serve", "main"]
+__all__ = ["describe", "serve", "main", "MAX_REQUEST"]
 
 
 def _jsonable(value):
@@ -83,7 +83,7 @@ def _surface(source: str, target: str, options_json: str) -> None:
         options = json.loads(options_json)
         if not isinstance(options, dict):
             raise ValueError("not a JSON object")
-    except ValueError as exc:
+    except (ValueError, RecursionError) as exc:
         raise ValueError(f"OPTIONS_JSON must be a JSON object of surface options ({exc})") from None
     if "radius" not in options:
         raise ValueError("OPTIONS_JSON needs a 'radius' (m)")
@@ -116,27 +116,67 @@ def _answer(request: dict) -> dict:
     return {"ok": True}
 
 
+#: Longest request line (characters) :func:`serve` reads; a longer one is answered with an
+#: error and skipped, without holding it in memory.
+MAX_REQUEST = 1 << 20
+
+
+def _lines(stdin):
+    """The request lines of ``stdin``, each cut at :data:`MAX_REQUEST` characters: yields
+    ``(line, too_long)``."""
+    while True:
+        line = stdin.readline(MAX_REQUEST + 1)
+        if not line:
+            return
+        if len(line) > MAX_REQUEST and not line.endswith("\n"):
+            while True:  # skip the rest of the line, a piece at a time
+                rest = stdin.readline(MAX_REQUEST)
+                if not rest or rest.endswith("\n"):
+                    break
+            yield "", True
+            continue
+        yield line, False
+
+
+def _request_answer(line: str) -> dict:
+    """One request line -> its answer; nothing a request does stops the loop."""
+    try:
+        request = json.loads(line)
+    except (ValueError, RecursionError) as exc:  # nesting deeper than Python's stack
+        return {"ok": False, "code": 2, "error": f"blobflow: error: bad request "
+                                                  f"({type(exc).__name__}: {str(exc)[:200]})"}
+    previous, sys.stdout = sys.stdout, sys.stderr
+    try:
+        return _answer(request)
+    except MemoryError:
+        return {"ok": False, "code": 1, "error": "blobflow: MemoryError: the request needs more "
+                                                 "memory than there is"}
+    except RecursionError as exc:
+        return {"ok": False, "code": 2, "error": f"blobflow: error: {exc}"}
+    except Exception as exc:  # noqa: BLE001 - one request's failure is its answer
+        return {"ok": False, "code": 1, "error": f"blobflow: {type(exc).__name__}: {exc}"}
+    finally:
+        sys.stdout = previous
+
+
 def serve(stdin=None, stdout=None) -> None:
     """Answer JSON-line requests from ``stdin`` on ``stdout`` until ``stdin`` closes.
 
-    Anything else written to ``sys.stdout`` while a request runs goes to stderr, so that the
-    answers stay one line each.
+    Every line gets one answer line, whatever it holds: malformed or too deeply nested JSON,
+    a line longer than :data:`MAX_REQUEST`, a request that fails or runs out of memory are
+    answered ``{"ok": false, ...}`` and the loop goes on. Anything else written to
+    ``sys.stdout`` while a request runs goes to stderr, so that the answers stay one line each.
     """
     stdin = sys.stdin if stdin is None else stdin
     stdout = sys.stdout if stdout is None else stdout
-    for line in stdin:
-        if not line.strip():
+    for line, too_long in _lines(stdin):
+        if too_long:
+            answer = {"ok": False, "code": 2, "error": f"blobflow: error: bad request (longer "
+                                                       f"than {MAX_REQUEST} characters)"}
+        elif not line.strip():
             continue
-        try:
-            request = json.loads(line)
-        except ValueError as exc:
-            answer = {"ok": False, "code": 2, "error": f"blobflow: error: bad request ({exc})"}
         else:
-            previous, sys.stdout = sys.stdout, sys.stderr
-            try:
-                answer = _answer(request)
-            finally:
-                sys.stdout = previous
+            answer = _request_answer(line)
         stdout.write(json.dumps(answer) + "\n")
         stdout.flush()
 
@@ -160,7 +200,10 @@ def main(argv=None) -> int:
     except (TypeError, ValueError) as exc:
         print(f"blobflow: error: {exc}", file=sys.stderr)
         return 2
-    except (SimulationError, RuntimeError, OSError) as exc:
+    except (SimulationError, RuntimeError, OSError, MemoryError) as exc:
+        print(f"blobflow: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # noqa: BLE001 - one line, never a traceback
         print(f"blobflow: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
     return 0

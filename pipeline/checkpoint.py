@@ -31,6 +31,8 @@ import numpy as np
 
 from filters.simulation import State
 
+from .outfiles import atomic_path
+
 __all__ = [
     "Checkpoint",
     "CheckpointError",
@@ -120,15 +122,12 @@ def write_checkpoint(path, checkpoint: Checkpoint) -> Path:
                             f"numeric arrays only")
         arrays[_STATE + name] = values
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            _write_npz(f, arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    # a temporary name of this process (pipeline.outfiles): two writers never share one, and
+    # a killed run's leftover is swept by the next
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        _write_npz(f, arrays)
+        f.flush()
+        os.fsync(f.fileno())
     return path
 
 

@@ -8,14 +8,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import signal
 import sys
 from pathlib import Path
 
 from . import cli_surface, cli_tools
 from .cli_common import (UsageError, add_cluster_options as _add_cluster_options,
-                         check_writable as _check_writable, client as _client,
-                         close_client as _close)
+                         check_workers as _check_workers, check_writable as _check_writable,
+                         client as _client, close_client as _close)
+from .folderlock import FolderLockedError, lock_folder
+from .outfiles import OwnershipError, atomic_path, frames_folder, remove_series
 
 __all__ = ["main"]
 
@@ -151,10 +155,12 @@ def _read_record(out: Path) -> dict | None:
     if not path.is_file():
         return None
     try:
+        if path.stat().st_size > 2**24:
+            raise ValueError("larger than 16 MiB")
         record = json.loads(path.read_text(encoding="utf-8"))
         if not isinstance(record, dict):
             raise ValueError("not a JSON object")
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, RecursionError) as exc:
         raise UsageError(f"{path} is not a blobflow run record ({exc}); choose another --out "
                          f"or remove it") from None
     return record
@@ -163,20 +169,20 @@ def _read_record(out: Path) -> dict | None:
 def _remove_previous_run(out: Path, record: dict) -> None:
     """Delete the series and renders a previous run of the same scene left in ``out``.
 
-    Only the names blobflow writes are touched: ``NAME.pvd``, ``NAME.*.series``, ``NAME.xdmf``,
-    ``NAME.h5``, ``NAME.checkpoint.npz`` and the frames folder ``NAME/`` of each output the
-    record lists, and the renders.
+    Only what blobflow writes is touched, by the one rule of :mod:`pipeline.outfiles`: the
+    collection files and the frames ``NAME/NAME_<digits>.vt?`` of each output the record lists
+    (the frames folder only when nothing else is left in it), and the renders.
     """
-    import shutil
-
-    names = [n for n in record.get("outputs", []) if isinstance(n, str) and n.isidentifier()]
-    for name in names:
-        for path in (out / f"{name}.pvd", out / f"{name}.xdmf", out / f"{name}.h5",
-                     out / f"{name}.checkpoint.npz", *out.glob(f"{name}.*.series")):
-            path.unlink(missing_ok=True)
-        if (out / name).is_dir():
-            shutil.rmtree(out / name)
+    for name in _record_outputs(record):
+        remove_series(out, name)
     _remove_renders(out)
+
+
+def _record_outputs(record: dict) -> list[str]:
+    """The output names a run record lists (plain names only)."""
+    outputs = record.get("outputs", [])
+    return [n for n in outputs if isinstance(n, str) and n.isidentifier()] \
+        if isinstance(outputs, list) else []
 
 
 def _remove_renders(out: Path) -> None:
@@ -186,9 +192,8 @@ def _remove_renders(out: Path) -> None:
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def _compile_surface_alongside(flow, record: dict) -> None:
@@ -203,41 +208,60 @@ def _compile_surface_alongside(flow, record: dict) -> None:
         simulate_while(worker, flow.source)
 
 
-def _cmd_run(args) -> int:
-    from filters.simulation import SimulationError
-
-    from .scene import load_scene
-    from .series import SeriesError
-
-    try:
-        scene = load_scene(args.scene)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+def _run_settings(args, scene):
+    """``(out, fps, duration)`` of ``blobflow run``, checked before anything is read."""
     out = Path(args.out) if args.out else Path("outputs") / scene.name
     fps = scene.fps if args.fps is None else args.fps
     if args.frames is None and args.duration is None:
         duration = scene.duration
     else:
         duration = args.duration
-    if not (fps > 0):
-        raise UsageError(f"--fps must be > 0, got {fps}")
-    if duration is not None and not (duration >= 0):
-        raise UsageError(f"--duration must be >= 0 seconds, got {duration}")
+    if not (math.isfinite(fps) and fps > 0):
+        raise UsageError(f"--fps must be > 0 and finite, got {fps}")
+    if duration is not None and not (math.isfinite(duration) and duration >= 0):
+        raise UsageError(f"--duration must be >= 0 seconds and finite, got {duration}")
+    if duration is not None and not math.isfinite(duration * fps):
+        raise UsageError(f"--duration {duration:g} s at --fps {fps:g} is more frames than "
+                         f"can be counted")
     if args.frames is not None and args.frames < 1:
         raise UsageError(f"--frames must be >= 1, got {args.frames}")
+    return out, fps, duration
+
+
+def _cmd_run(args) -> int:
+    from .scene import load_scene
+
+    try:
+        scene = load_scene(args.scene)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    out, fps, duration = _run_settings(args, scene)
     try:
         overrides = scene.parse_assignments(args.assignments)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    parameters = {**scene.defaults(), **overrides}
     _check_writable(out)
+    try:
+        with lock_folder(out):  # one writer per folder, from the first read to the last write
+            return _run_locked(args, scene, out, fps, duration, overrides)
+    except FolderLockedError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _run_locked(args, scene, out: Path, fps: float, duration, overrides: dict) -> int:
+    from filters.simulation import SimulationError
+
+    from .series import SeriesError
+
+    parameters = {**scene.defaults(), **overrides}
     saved = _read_record(out)
     if saved is not None and saved.get("scene") != scene.name:
         raise UsageError(f"{out} holds a run of scene {saved.get('scene')!r}, not {scene.name!r}; "
                          f"choose another --out or remove it")
     if args.resume and saved is not None:
+        saved_params = saved.get("parameters", {})
         saved_params = {k: (tuple(v) if isinstance(v, list) else v)
-                        for k, v in saved.get("parameters", {}).items()}
+                        for k, v in (saved_params if isinstance(saved_params, dict) else {}).items()}
         clashes = [k for k, v in overrides.items() if k in saved_params and saved_params[k] != v]
         if clashes:
             raise UsageError(
@@ -251,32 +275,57 @@ def _cmd_run(args) -> int:
     try:
         flow = scene.build(**parameters)
         flow.source.set_frames(fps, duration=duration, frames=args.frames)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, OverflowError) as exc:
         raise UsageError(f"scene {scene.name!r}: {exc}") from None
+    try:  # every folder the run writes or cleans is its own, before anything is changed
+        for name in {*flow.written_outputs(), *(_record_outputs(saved) if saved else [])}:
+            frames_folder(out, name)
+    except OwnershipError as exc:
+        raise UsageError(str(exc)) from None
     if args.resume:
         try:
             flow.check_resume(out)
         except (SeriesError, ValueError) as exc:
             raise UsageError(f"cannot resume: {exc}") from None
 
-    out.mkdir(parents=True, exist_ok=True)
     if saved is not None and not args.resume:
         _remove_previous_run(out, saved)
-    elif saved is not None:  # resumed: the renders of the shorter run no longer show it
-        _remove_renders(out)
     record = _scene_record(scene, parameters, fps, flow.written_outputs())
-    _write_text_atomic(out / "scene.json", json.dumps(record, indent=1, default=list) + "\n")
+    text = json.dumps(record, indent=1, default=list) + "\n"
+    started = []
+
+    def on_frame(index, time):
+        # a resume changes the folder only once its checkpoint has been restored and a frame
+        # written: a checkpoint that does not fit leaves the record and the renders as they were
+        if not started:
+            started.append(True)
+            if args.resume:
+                _remove_renders(out)  # the renders of the shorter run no longer show it
+                _write_text_atomic(out / "scene.json", text)
+
+    if not args.resume:
+        _write_text_atomic(out / "scene.json", text)
     if not args.resume and "surface" in flow.written_outputs():
         _compile_surface_alongside(flow, record)
     try:
-        paths = flow.run(out, resume=args.resume, progress=not args.quiet)
+        paths = flow.run(out, resume=args.resume, progress=not args.quiet, on_frame=on_frame)
     except SeriesError as exc:  # a checkpoint frame on disk that cannot be read
+        if args.resume and not started:  # nothing was changed: the input is at fault
+            raise UsageError(f"cannot resume: {exc}") from None
         print(f"blobflow: error: {exc}", file=sys.stderr)
         return 1
     except SimulationError as exc:
         print(f"blobflow: {exc}", file=sys.stderr)
         print(f"blobflow: the frames written before the failure are valid in {out}", file=sys.stderr)
         return 1
+    except (ValueError, TypeError, KeyError, IndexError) as exc:
+        if args.resume and not started:  # restoring the checkpoint failed: nothing was changed
+            raise UsageError(f"cannot resume from the checkpoint in {out}: it does not fit scene "
+                             f"{scene.name!r} with these parameters ({type(exc).__name__}: "
+                             f"{exc})") from None
+        raise
+    if args.resume and not started:
+        _write_text_atomic(out / "scene.json", text)
     if not args.no_render:
         from .render import RenderUnavailableError, render_run
 
@@ -295,18 +344,32 @@ def _cmd_run(args) -> int:
 
 # -- render -------------------------------------------------------------------------------------
 def _cmd_render(args) -> int:
-    from .render import RenderUnavailableError, parse_size, timelapse, turntable
-    from .series import SeriesError, validate_series
+    from .frames import FramesError
+    from .render import (RenderUnavailableError, check_fps, check_movie_length, parse_size,
+                         timelapse, turntable)
+    from .series import SeriesError, read_collection, validate_series
 
     paths = [Path(p) for p in args.series]
-    try:
-        for path in paths:
-            validate_series(path)  # every frame, before anything is drawn or written
-        size = parse_size(args.size)
-    except (FileNotFoundError, SeriesError, ValueError) as exc:
-        raise UsageError(str(exc)) from None
+    stem = paths[0].name.split(".")[0]
+    default = f"{stem}_turntable.gif" if args.turntable else f"{stem}.mp4"
+    out = Path(args.out) if args.out else paths[0].parent / default
     if args.turntable is not None and args.turntable < 2:
         raise UsageError(f"--turntable must be >= 2 frames, got {args.turntable}")
+    if not math.isfinite(args.orbit):
+        raise UsageError(f"--orbit must be a finite number of degrees, got {args.orbit}")
+    _check_workers(args)
+    try:
+        size = parse_size(args.size)
+        if args.fps is not None:
+            check_fps(args.fps)
+        if args.turntable is not None:  # limits first: before any frame is read
+            check_movie_length(args.turntable, size, out, turntable=True)
+        else:
+            check_movie_length(len(read_collection(paths[0])), size, out, turntable=False)
+        for path in paths:
+            validate_series(path)  # every frame, before anything is drawn or written
+    except (FileNotFoundError, SeriesError, ValueError) as exc:
+        raise UsageError(f"--{exc}" if str(exc).startswith("fps ") else str(exc)) from None
     if args.turntable is None and (args.time is not None or args.time_index is not None):
         raise UsageError("--time and --time-index choose the turntable's time step: give "
                          "--turntable N too")
@@ -317,11 +380,6 @@ def _cmd_render(args) -> int:
             frame_at_time(paths, args.time)
         except ValueError as exc:
             raise UsageError(f"--{exc}") from None
-    if args.fps is not None and not args.fps > 0:
-        raise UsageError(f"--fps must be > 0, got {args.fps}")
-    stem = paths[0].name.split(".")[0]
-    default = f"{stem}_turntable.gif" if args.turntable else f"{stem}.mp4"
-    out = Path(args.out) if args.out else paths[0].parent / default
     if out.suffix and out.suffix.lower() not in (".gif", ".mp4"):
         raise UsageError(f"--out must end in .gif or .mp4, or name a folder for PNG files; got {out}")
     _check_writable(out.parent if out.suffix else out)
@@ -343,6 +401,9 @@ def _cmd_render(args) -> int:
                                fps=args.fps, progress=not args.quiet)
     except (SeriesError, ValueError, IndexError, RenderUnavailableError) as exc:
         raise UsageError(str(exc)) from None
+    except FramesError as exc:
+        print(f"blobflow: {exc}", file=sys.stderr)
+        return 1
     finally:
         _close(client)
     print(f"wrote {result}")
@@ -362,14 +423,30 @@ def _usage_errors(command):
 # -- info ---------------------------------------------------------------------------------------
 def _cmd_info(args) -> int:
     import numpy as np
+    import pyvista as pv
 
     from .checkpoint import checkpoint_path
     from .convert import STATE_PREFIX
-    from .series import SeriesError, read_series
+    from .series import SeriesError, read_collection, read_frame
 
     path = Path(args.series)
+    # one frame in memory at a time: a series of any length is described in the memory of
+    # its largest frame (which the file check bounds by the memory limit)
     try:
-        times, datasets = read_series(path)
+        entries = read_collection(path)
+        times = np.array([t for t, _ in entries], dtype=np.float64)
+        first, counts, rows = None, [], []
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for t, name in entries:
+            data = pv.wrap(read_frame(path.parent / name))
+            if first is None:
+                first = data
+            counts.append(data.n_points)
+            if data.n_points:
+                bounds = np.asarray(data.bounds, dtype=float)
+                lo, hi = np.minimum(lo, bounds[0::2]), np.maximum(hi, bounds[1::2])
+            if len(entries) <= 12:
+                rows.append(f"    t = {t:<10g} {data.n_points} points, {data.n_cells} cells")
     except (FileNotFoundError, SeriesError) as exc:
         raise UsageError(str(exc)) from None
     print(f"{path}: {len(times)} frames")
@@ -377,7 +454,6 @@ def _cmd_info(args) -> int:
         return 0
     print(f"  times: {times[0]:g} .. {times[-1]:g} s" + (
         f" (every {np.diff(times).mean():g} s)" if len(times) > 1 else ""))
-    first = datasets[0]
     print(f"  type: {type(first).__name__}")
     for label, attrs in (("point", first.point_data), ("cell", first.cell_data)):
         names = [f"{n} ({attrs[n].shape[1] if attrs[n].ndim > 1 else 1})" for n in attrs.keys()]
@@ -387,21 +463,51 @@ def _cmd_info(args) -> int:
                  or any(n.startswith(STATE_PREFIX) for n in first.field_data.keys()))
     print(f"  field arrays: {', '.join(fields) or 'none'}"
           + ("; checkpointed (resumable)" if resumable else ""))
-    bounds = np.array([d.bounds for d in datasets if d.n_points], dtype=float).reshape(-1, 6)
-    if len(bounds):
-        lo = bounds[:, 0::2].min(axis=0)
-        hi = bounds[:, 1::2].max(axis=0)
+    if np.all(np.isfinite(lo)):
         print(f"  bounds: x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g}, z {lo[2]:g} .. {hi[2]:g}")
-    counts = [d.n_points for d in datasets]
     print(f"  points per frame: {min(counts)} .. {max(counts)}")
-    if len(times) <= 12:
-        for t, d in zip(times, datasets):
-            print(f"    t = {t:<10g} {d.n_points} points, {d.n_cells} cells")
+    for row in rows:
+        print(row)
     return 0
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived: unwinds like Ctrl-C, so that temporary files are removed and the output
+    folder's lock released (a BaseException, so that no ``except Exception`` swallows it)."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+def _with_signals(run):
+    """Run ``run()`` with SIGTERM turned into :class:`Terminated` (main thread only)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: leave signals alone
+        return run()
+    try:
+        return run()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _os_error(exc: OSError) -> str:
+    """An OSError as one line: what failed and on which file."""
+    where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
+    if len(where) > 200:
+        where = where[:100] + "..." + where[-60:]
+    return f"{exc.strerror or exc}{where}"
+
+
 def main(argv=None) -> int:
-    """Entry point of the ``blobflow`` console script; returns the exit code."""
+    """Entry point of the ``blobflow`` console script; returns the exit code.
+
+    Every failure is one line on stderr: 2 for the user's input and the system's limits (an
+    unwritable folder, a name too long, not enough memory), 1 for a run that failed while
+    computing, 130 for Ctrl-C, 143 for SIGTERM; ``BLOBFLOW_DEBUG=1`` shows the traceback of an
+    unexpected error.
+    """
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
@@ -413,7 +519,7 @@ def main(argv=None) -> int:
                        a, run=main, check_writable=_check_writable)),
                    "export": _usage_errors(cli_tools.export_command),
                    "paraview": _usage_errors(cli_tools.paraview_command)}[args.command]
-        return command(args)
+        return _with_signals(lambda: command(args))
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else 0
     except UsageError as exc:
@@ -423,9 +529,27 @@ def main(argv=None) -> int:
         print("blobflow: interrupted; the frames written so far are valid (use --resume)",
               file=sys.stderr)
         return 130
+    except Terminated:
+        print("blobflow: terminated; the frames written so far are valid (use --resume)",
+              file=sys.stderr)
+        return 143
     except BrokenPipeError:  # e.g. `blobflow info ... | head`
         sys.stdout = open(os.devnull, "w")
         return 0
+    except OSError as exc:  # the system refused: a name too long, a full disk, permissions
+        print(f"blobflow: error: {_os_error(exc)}", file=sys.stderr)
+        return 2
+    except (OverflowError, MemoryError, RecursionError) as exc:
+        print(f"blobflow: error: {type(exc).__name__}: {str(exc) or 'out of memory'}",
+              file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 - the last resort: one line, never a traceback
+        if os.environ.get("BLOBFLOW_DEBUG"):
+            raise
+        text = " ".join(str(exc).split())
+        print(f"blobflow: error: {type(exc).__name__}: {text[:500]} (BLOBFLOW_DEBUG=1 shows "
+              f"where)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 from . import cli_tools
-from .cli_common import (UsageError, add_cluster_options, check_writable, client as make_client,
-                         close_client, report_memory)
+from .cli_common import (UsageError, add_cluster_options, check_name_length, check_workers,
+                         check_writable, client as make_client, close_client, report_memory)
 
 __all__ = ["add_surface_parser", "surface_command"]
 
@@ -71,43 +71,51 @@ def _surface_options(args, source: Path) -> dict:
 
 def surface_command(args) -> int:
     """``blobflow surface``: the surface of every frame of a particle series."""
+    from .folderlock import FolderLockedError, lock_folder
     from .frames import FramesError, surface_series
-    from .series import SeriesError, validate_series
+    from .outfiles import OwnershipError, frames_folder
 
     if not args.name.isidentifier():
         raise UsageError(f"--name must be a plain name such as 'surface' (letters, digits, _), "
                          f"got {args.name!r}")
     source = Path(args.particles)
     out = Path(args.out)
+    check_name_length(out, args.name, ".source.json", "--name")
     target = out / f"{args.name}.pvd"
     if (target.resolve() == source.resolve()
             or (out / args.name).resolve() == (source.parent / source.name.split(".")[0]).resolve()):
         raise UsageError(f"--out {out} with --name {args.name} would overwrite the input series "
                          f"{source}; choose another --out or --name")
+    if not 0 <= args.across_frames <= 10:
+        raise UsageError(f"--across-frames must be in [0, 10], got {args.across_frames}")
+    check_workers(args)
+    options = _surface_options(args, source)
+    _fit_budget_to_memory(args, options)
     try:
-        entries = validate_series(source)  # every frame, before anything is written
-    except (FileNotFoundError, SeriesError) as exc:
+        from .surface import surface_stages
+
+        surface_stages(**options)  # with the budget it will run with
+    except (TypeError, ValueError) as exc:
         raise UsageError(str(exc)) from None
+    entries = _check_input(source, options, args.across_frames)  # every frame, up front
     inputs = {(source.parent / name).resolve() for _, name in entries}
     if any(p.parent == (out / args.name).resolve() for p in inputs):
         raise UsageError(f"--out {out} with --name {args.name} would overwrite the input frames; "
                          f"choose another --out or --name")
-    if not 0 <= args.across_frames <= 10:
-        raise UsageError(f"--across-frames must be in [0, 10], got {args.across_frames}")
-    options = _surface_options(args, source)
-    try:
-        from .surface import surface_stages
-
-        surface_stages(**options)
-    except (TypeError, ValueError) as exc:
-        raise UsageError(str(exc)) from None
-    _fit_budget_to_memory(args, options)
     check_writable(out)
-    client = make_client(args)
+    client = None
     try:
-        result = surface_series(args.particles, target, client=client,
-                                resume=args.resume, progress=not args.quiet,
-                                across_frames=args.across_frames, **options)
+        with lock_folder(out):  # one writer per folder
+            for name in (args.name, f"_{args.name}_single"):
+                frames_folder(out, name)  # a link or a file in the way is refused
+            client = make_client(args)
+            result = surface_series(args.particles, target, client=client,
+                                    resume=args.resume, progress=not args.quiet,
+                                    across_frames=args.across_frames, **options)
+    except (FolderLockedError, OwnershipError) as exc:
+        raise UsageError(str(exc)) from None
+    except ValueError as exc:  # the provenance of the frames kept by --resume
+        raise UsageError(str(exc)) from None
     except FramesError as exc:
         print(f"blobflow: {exc}", file=sys.stderr)
         print(f"blobflow: the frames that succeeded are in {out}; rerun with --resume",
@@ -118,6 +126,50 @@ def surface_command(args) -> int:
     print(f"wrote {result.path} ({result.computed} frames computed, {result.skipped} kept)")
     report_memory(result)
     return 0
+
+
+def _check_input(source: Path, options: dict, across_frames: int):
+    """Read every frame of the input once, before any work, and refuse what no frame can
+    succeed with: a missing or damaged frame, particles beyond the voxel index's reach at this
+    cell size, particles so crowded that the work would be quadratic, or (with
+    ``--across-frames``) frames without the ``id`` array the particles are followed by."""
+    import numpy as np
+
+    from filters.kernels import SPLAT_DEFAULTS
+    from filters.surface.crowding import CrowdingError, check_crowding
+    from filters.surface.grid import check_block_range
+    from vtkmodules.util import numpy_support
+
+    from .series import SeriesError, validate_series
+    from .surface_options import SURFACE_DEFAULTS
+
+    radius = float(options.get("radius", SURFACE_DEFAULTS["radius"]))
+    cell = float(options.get("cell_size") or radius / 2)
+    block = int(options.get("block_size", 8))
+    kernel = options.get("kernel", SURFACE_DEFAULTS["kernel"])
+    support = float(options.get("support_r") or SPLAT_DEFAULTS[kernel]["support"]) * radius
+
+    def check(index, data):
+        points = data.GetPoints() if hasattr(data, "GetPoints") else None
+        if points is None or data.GetNumberOfPoints() == 0:
+            return
+        xyz = numpy_support.vtk_to_numpy(points.GetData()).astype(np.float64, copy=False)
+        finite = xyz[np.isfinite(xyz).all(axis=1)]
+        what = f"the particles of frame {index}"
+        try:
+            check_block_range(what, finite, cell, block)
+            if options.get("radius_array") is None:
+                check_crowding(finite, support, what)
+        except (CrowdingError, ValueError) as exc:
+            raise UsageError(str(exc)) from None
+        if across_frames and data.GetPointData().GetArray("id") is None:
+            raise UsageError(f"--across-frames follows the particles by their 'id' point "
+                             f"array, which frame {index} of {source} does not have")
+
+    try:
+        return validate_series(source, on_frame=check)
+    except (FileNotFoundError, SeriesError) as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _fit_budget_to_memory(args, options: dict) -> None:

@@ -18,6 +18,8 @@ from .checkpoint import (CHECKPOINT_SUFFIX, Checkpoint, CheckpointError, file_di
                          read_checkpoint, write_checkpoint)
 from .colliders import COLLIDERS_FILE, Collider, write_colliders
 from .convert import has_state, state_from_dataset
+from .folderlock import holds_folder
+from .outfiles import sweep_temporaries
 from .series import SeriesWriter, read_frame
 from .xdmf import export_xdmf
 from .sources import SimulationSource
@@ -310,6 +312,7 @@ class Flow:
         write_checkpoint(directory / self.checkpoint_path,
                          Checkpoint(state, index, float(self.times[index]), digests))
 
+    @holds_folder("directory")  # one writer per folder (pipeline.folderlock)
     def run(self, directory, *, resume: bool = False, progress: bool = True,
             on_frame=None, checkpoint_every: int = 10,
             checkpoint_seconds: float = 300.0) -> dict[str, Path]:
@@ -351,6 +354,7 @@ class Flow:
         if not written:
             raise ValueError("no output is marked to be written")
         directory.mkdir(parents=True, exist_ok=True)
+        sweep_temporaries(directory)  # ours alone now (the lock): a killed run's leftovers go
         if self.colliders:
             write_colliders(self.colliders, directory / COLLIDERS_FILE)
         writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}

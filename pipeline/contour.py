@@ -19,7 +19,7 @@ from vtkmodules.vtkCommonCore import vtkPoints, vtkTypeInt32Array, vtkTypeInt64A
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkImageData, vtkPolyData
 from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D
 
-from filters.surface.grid import DenseField, SparseGrid
+from filters.surface.grid import DEFAULT_MAX_BYTES, DenseField, SparseGrid, check_budget
 from filters.surface.mesh import piece_flags, stitch
 from filters.surface.tetra import contour_array, contour_grid
 from filters.validation import check_choice, check_int
@@ -31,6 +31,8 @@ __all__ = [
     "image_of",
     "Pieces",
     "brick_images",
+    "brick_chunk",
+    "check_grid_sizes",
     "contour_dense",
     "contour_sparse",
     "mesh_to_polydata",
@@ -145,13 +147,58 @@ def contour_dense(field: DenseField, method: str = "flying_edges"):
     return pieces.mesh(field.cell_size)
 
 
-def brick_images(grid: SparseGrid, group: int, chunk: int = 16):
+def brick_chunk(span: int, max_bytes: int, chunk: int = 16) -> int:
+    """Bricks of ``span + 1`` voxels a side filled at once: at most ``chunk``, and as many as
+    fit a quarter of ``max_bytes`` (at least one; :func:`check_grid_sizes` refuses a brick
+    larger than that)."""
+    brick = 4 * (span + 1) ** 3
+    return int(max(1, min(chunk, (max_bytes // 4) // brick)))
+
+
+def check_grid_sizes(radius: float, cell_size: float, kernel: str, support_r, block_size: int,
+                     brick_blocks: int, max_bytes: int, fixed_radius: bool = True) -> None:
+    """Refuse, before any work, grid settings that cannot fit ``max_bytes`` or reach.
+
+    A brick of ``block_size * brick_blocks + 1`` voxels a side is filled and contoured whole:
+    it must fit a quarter of ``max_bytes`` (the rest is the grid's). With one radius for all
+    particles (``fixed_radius``), the kernel's support ``support_r * radius`` may span at most
+    64 blocks (the splat's limit), which a ``cell_size`` far below the radius exceeds.
+
+    Raises
+    ------
+    ValueError
+        Naming the settings and the limit.
+    """
+    from filters.kernels import SPLAT_DEFAULTS
+    from filters.surface.grid import GridTooLargeError, format_bytes
+
+    span = block_size * brick_blocks
+    brick = 4 * (span + 1) ** 3
+    if brick > max_bytes // 4:
+        raise GridTooLargeError(
+            f"block_size * brick_blocks = {block_size} * {brick_blocks}: a brick of {span + 1}^3 "
+            f"voxels needs {format_bytes(brick)}, more than a quarter of max_bytes = "
+            f"{format_bytes(max_bytes)}; lower block_size or brick_blocks")
+    support = SPLAT_DEFAULTS[kernel]["support"] if support_r is None else support_r
+    reach = support * radius / cell_size
+    if fixed_radius and reach > 64 * block_size:
+        raise ValueError(f"cell_size = {cell_size:g} m is too small for radius = {radius:g} m: "
+                         f"the kernel's support would span {reach:.3g} voxels, more than "
+                         f"{64 * block_size} (64 blocks of {block_size}); increase cell_size")
+
+
+def brick_images(grid: SparseGrid, group: int, chunk: int = 16,
+                 max_bytes: int = DEFAULT_MAX_BYTES):
     """Yield (index_origin, values) of each brick that holds a sign change.
 
-    The values live in a buffer reused for every chunk of bricks: use them before the next."""
+    The values live in a buffer reused for every chunk of bricks: use them before the next.
+    The buffer holds at most a quarter of ``max_bytes`` (:func:`brick_chunk`)."""
     bricks = grid.bricks(group)
     table = grid.block_table()
     span = group * grid.block_size
+    check_budget(4 * (span + 1) ** 3, max(max_bytes // 4, 1),
+                 f"one brick of {span + 1}^3 voxels (a quarter of max_bytes)")
+    chunk = brick_chunk(span, max_bytes, chunk)
     buffer = np.empty((min(chunk, bricks.shape[0]),) + (span + 1,) * 3, np.float32)
     for s in range(0, bricks.shape[0], chunk):
         part = bricks[s:s + chunk]

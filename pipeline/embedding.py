@@ -23,6 +23,7 @@ from filters.simulation import Frame, OutputSpec
 
 from .algorithm import Algorithm, vtk_messages
 from .convert import dataset_time, frame_to_vtk
+from .xmlcheck import XML_SUFFIXES, UnsafeFileError, check_vtk_xml
 
 __all__ = ["EmbeddedSurface", "read_closed_mesh"]
 
@@ -80,6 +81,10 @@ class EmbeddedSurface(Algorithm):
         return 1
 
 
+#: Files that make VTK read other files (collections, parallel pieces): not one mesh.
+_MULTI_FILE = (".vtm", ".vtmb", ".pvd", ".pvtp", ".pvtu", ".pvti", ".pvts", ".pvtr", ".series")
+
+
 def read_closed_mesh(path, name: str = "mesh"):
     """Read a closed triangle surface from any file PyVista reads.
 
@@ -107,6 +112,15 @@ def read_closed_mesh(path, name: str = "mesh"):
 
     if not Path(path).is_file():
         raise ValueError(f"{name}: no such file {str(path)!r}")
+    suffix = Path(path).suffix.lower()
+    if suffix in _MULTI_FILE:
+        raise ValueError(f"{name}: {str(path)!r} is a {suffix} file, which names other files; "
+                         f"give one mesh file")
+    if suffix in XML_SUFFIXES:  # declared sizes checked before VTK allocates them
+        try:
+            check_vtk_xml(path)
+        except (UnsafeFileError, OSError) as exc:
+            raise ValueError(f"{name}: {exc}") from None
     # PyVista reports a reader's failure as log records and a warning: keep them, say it once
     logging.disable(logging.CRITICAL)
     try:

@@ -18,10 +18,13 @@ cluster is asked for.
 
 from __future__ import annotations
 
+import json
 import os
 import resource
 import socket
 import struct
+import threading
+import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +33,9 @@ from tqdm.auto import tqdm
 
 from filters.validation import check_int
 
+from .folderlock import holds_folder
+from .outfiles import (atomic_path, frame_names, frames_folder, remove_frames,
+                       sweep_temporaries)
 from .series import SeriesWriter, read_collection, read_frame, write_frame
 
 __all__ = [
@@ -43,6 +49,10 @@ __all__ = [
     "frame_done",
     "connect",
     "SchedulerError",
+    "check_provenance",
+    "provenance_path",
+    "CONNECT_TIMEOUT",
+    "PROBE_TIMEOUT",
 ]
 
 
@@ -116,13 +126,20 @@ def _run_task(task, in_file: str, out_file: str, time: float, options: dict) -> 
 _HANDSHAKE_LIMIT = 2**20
 
 
-def _probe_scheduler(address: str, timeout: float = 5.0) -> None:
+#: Seconds a scheduler has to send its whole handshake (:func:`_probe_scheduler`).
+PROBE_TIMEOUT = 5.0
+
+
+def _probe_scheduler(address: str, timeout: float | None = None) -> None:
     """Check that a ``tcp://`` address answers like a Dask scheduler, before Dask connects.
 
-    A Dask server writes a small handshake (an 8-byte little-endian length, then that many
-    bytes) as soon as it accepts a connection.  Dask's own client trusts that length, so a
-    server that sends nothing (an HTTP server) keeps it waiting, and one that sends other bytes
-    makes it allocate whatever they encode; this probe refuses both with one clear message.
+    A Dask server writes a handshake as soon as it accepts a connection: an 8-byte
+    little-endian length, that many bytes (a frame count, the frames' lengths and the frames
+    that fit), then the frames that did not.  Dask's own client trusts those lengths and waits
+    for them without a deadline, so a server that sends nothing (an HTTP server), other bytes,
+    or a part of a handshake and then nothing, keeps it waiting forever or makes it allocate
+    whatever the bytes encode.  This probe reads the whole handshake within ``timeout``
+    seconds in all and refuses anything else with one clear message.
     """
     scheme, _, rest = address.rpartition("://")
     if scheme not in ("", "tcp"):
@@ -135,31 +152,81 @@ def _probe_scheduler(address: str, timeout: float = 5.0) -> None:
         raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}") from None
     if not host or not 0 < port < 65536:
         raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}")
+    timeout = PROBE_TIMEOUT if timeout is None else timeout
+    deadline = time.monotonic() + timeout
     try:
         sock = socket.create_connection((host, port), timeout=timeout)
-    except OSError as exc:
+    except (OSError, UnicodeError) as exc:
         raise SchedulerError(f"cannot reach the Dask scheduler at {address}: "
-                             f"{exc.strerror or exc}") from None
-    header = b""
+                             f"{getattr(exc, 'strerror', None) or exc}") from None
+    not_dask = f"{address} does not speak Dask's protocol: not a Dask scheduler"
+
+    def receive(n: int, what: str) -> bytes:
+        data = b""
+        while len(data) < n:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise SchedulerError(f"{address} sent {what} within {timeout:g} s: not a "
+                                     f"Dask scheduler")
+            sock.settimeout(left)
+            try:
+                chunk = sock.recv(min(n - len(data), 1 << 16))
+            except OSError:  # socket.timeout included
+                continue
+            if not chunk:
+                raise SchedulerError(f"{address} closed the connection without a Dask "
+                                     f"handshake: not a Dask scheduler")
+            data += chunk
+        return data
+
     with sock:
-        sock.settimeout(timeout)
+        (size,) = struct.unpack("<Q", receive(8, "no Dask handshake"))
+        if not 16 <= size <= _HANDSHAKE_LIMIT:
+            raise SchedulerError(f"{not_dask} (its first message claims {size} bytes)")
+        block = receive(size, "only a part of a Dask handshake")
+        (count,) = struct.unpack_from("<Q", block)
+        if not 1 <= count <= 64 or 8 * (1 + count) > size:
+            raise SchedulerError(f"{not_dask} (its first message claims {count} frames)")
+        lengths = struct.unpack_from(f"<{count}Q", block, 8)
+        if sum(lengths) > _HANDSHAKE_LIMIT:
+            raise SchedulerError(f"{not_dask} (its first message claims {sum(lengths)} bytes)")
+        missing = max(sum(lengths) - (size - 8 * (1 + count)), 0)
+        receive(missing, "only a part of a Dask handshake")
+
+
+#: Seconds a Dask client may take to connect, handshake and register with a scheduler.
+CONNECT_TIMEOUT = 10.0
+
+
+def _client_within(scheduler: str, timeout: float):
+    """``Client(scheduler)``, given up after ``timeout`` seconds whatever the server does.
+
+    Dask's own ``timeout`` covers the connection but not every later step of its start (a
+    server may answer the handshake and then nothing): the client starts in a thread that is
+    abandoned, and reported, when it is late."""
+    from dask.distributed import Client
+
+    box: dict = {}
+
+    def start():
         try:
-            while len(header) < 8:
-                chunk = sock.recv(8 - len(header))
-                if not chunk:
-                    break
-                header += chunk
-        except OSError:  # socket.timeout included
-            raise SchedulerError(
-                f"{address} accepted the connection but sent no Dask handshake within "
-                f"{timeout:g} s: not a Dask scheduler") from None
-    if len(header) < 8:
-        raise SchedulerError(f"{address} closed the connection without a Dask handshake: "
-                             f"not a Dask scheduler")
-    (size,) = struct.unpack("<Q", header)
-    if not 0 < size <= _HANDSHAKE_LIMIT:
-        raise SchedulerError(f"{address} does not speak Dask's protocol (its first message "
-                             f"claims {size} bytes): not a Dask scheduler")
+            box["client"] = Client(scheduler, timeout=f"{timeout:g}s")
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            box["error"] = exc
+
+    thread = threading.Thread(target=start, daemon=True, name="blobflow-dask-connect")
+    thread.start()
+    thread.join(timeout + 5.0)
+    if thread.is_alive():
+        raise SchedulerError(f"the Dask scheduler at {scheduler} did not finish connecting "
+                             f"within {timeout + 5.0:g} s")
+    if "error" in box:
+        exc = box["error"]
+        if isinstance(exc, (OSError, TimeoutError, ValueError, TypeError)):
+            raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: "
+                                 f"{exc}") from None
+        raise exc
+    return box["client"]
 
 
 def connect(scheduler: str | None = None, workers: int | None = None):
@@ -175,7 +242,9 @@ def connect(scheduler: str | None = None, workers: int | None = None):
     Raises
     ------
     SchedulerError
-        If Dask is not installed or the scheduler does not answer within 10 s.
+        If Dask is not installed, the address does not send a whole Dask handshake within
+        :data:`PROBE_TIMEOUT` seconds, or the client has not started
+        :data:`CONNECT_TIMEOUT` + 5 seconds later.
     ValueError
         For ``workers < 1`` or both arguments.
     """
@@ -189,10 +258,7 @@ def connect(scheduler: str | None = None, workers: int | None = None):
         raise SchedulerError("Dask is not installed: pip install 'blobflow[dask]'") from None
     if scheduler is not None:
         _probe_scheduler(scheduler)
-        try:
-            return Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError, ValueError, TypeError) as exc:
-            raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        return _client_within(scheduler, CONNECT_TIMEOUT)
     # One thread per worker process; Numba's own threads pinned to one so that N workers use N
     # cores instead of fighting over them.
     cluster = LocalCluster(n_workers=workers or 1, threads_per_worker=1, processes=True,
@@ -249,6 +315,7 @@ def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, des
     return infos, sorted(failures, key=lambda f: f.index)
 
 
+@holds_folder("output_path")  # one writer per folder (re-entrant: the CLI holds it too)
 def map_frames(input_path, output_path, task, options: dict | None = None, *, client=None,
                resume: bool = False, progress: bool = True, retries: int = 1,
                extension: str = ".vtp") -> FramesResult:
@@ -279,6 +346,10 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
     FramesError
         If some frames failed on every attempt; the successful frames stay on disk and no
         collection file is written.
+    pipeline.folderlock.FolderLockedError
+        If another process writes the output folder.
+    pipeline.outfiles.OwnershipError
+        If the frames folder is a symbolic link, a file or another mount.
     """
     input_path = Path(input_path)
     output_path = Path(output_path)
@@ -287,9 +358,14 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
     options = dict(options or {})
     entries = read_collection(input_path)
     name = output_path.stem
-    frames_dir = output_path.parent / name
+    frames_dir = frames_folder(output_path.parent, name, create=True)  # a link is refused
     jobs, done_entries = [], []
     result = FramesResult(output_path)
+    if not resume:
+        # a fresh run leaves no frame of another run beside its own, removed by the one rule
+        # of pipeline.outfiles (NAME_<digits>.vt?, nothing else: the user's files stay)
+        remove_frames(frames_dir, name)
+    sweep_temporaries(frames_dir)
     for i, (t, rel) in enumerate(entries):
         out_rel = f"{name}/{name}_{i:06d}{extension}"
         out_file = output_path.parent / out_rel
@@ -298,14 +374,6 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
             result.skipped += 1
             continue
         jobs.append((i, t, str(input_path.parent / rel), str(out_file)))
-    frames_dir.mkdir(parents=True, exist_ok=True)
-    if not resume:
-        # A fresh run must not leave another run's frames beside its own.
-        keep = {Path(rel).name for _, rel in done_entries}
-        for f in frames_dir.iterdir():
-            if f.name.startswith(f"{name}_") and f.name not in keep:
-                f.unlink()
-
     infos, failures = run_tasks(
         [(i, t, (task, in_file, out_file, t, options)) for i, t, in_file, out_file in jobs],
         client=client, retries=retries, progress=progress, desc=name, total=len(entries),
@@ -333,6 +401,80 @@ def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> No
     write_frame(copy, out_file)
 
 
+def provenance_path(output_path) -> Path:
+    """The file beside a series that records what its frames were computed from
+    (``NAME.source.json``)."""
+    output_path = Path(output_path)
+    return output_path.with_name(f"{output_path.stem}.source.json")
+
+
+def _provenance(particles_path: Path, options: dict, across_frames: int) -> dict:
+    """What a surface series is computed from: the input collection, every input frame's
+    size and modification time, and the options."""
+    frames = []
+    for _, rel in read_collection(particles_path):
+        try:
+            stat = os.stat(particles_path.parent / rel)
+            frames.append([rel, stat.st_size, stat.st_mtime_ns])
+        except OSError:
+            frames.append([rel, None, None])
+    return {"input": str(particles_path.resolve()), "frames": frames,
+            "options": json.loads(json.dumps(options, sort_keys=True, default=repr)),
+            "across_frames": int(across_frames)}
+
+
+def _provenance_change(old: dict, new: dict) -> str | None:
+    """How ``new`` differs from ``old`` (one phrase), or None."""
+    if old.get("input") != new["input"]:
+        return f"from another input ({old.get('input')})"
+    if old.get("frames") != new["frames"]:
+        before = {f[0]: f[1:] for f in old.get("frames") or [] if isinstance(f, list) and f}
+        changed = [f[0] for f in new["frames"] if before.get(f[0]) != f[1:]]
+        what = f"frame {changed[0]} changed" if changed else "its frames changed"
+        return f"from another version of the input ({what} since)"
+    if old.get("across_frames") != new["across_frames"]:
+        return (f"with --across-frames {old.get('across_frames')}, not "
+                f"{new['across_frames']}")
+    before, after = old.get("options") or {}, new["options"]
+    keys = sorted(k for k in set(before) | set(after) if before.get(k) != after.get(k))
+    if keys:
+        listed = ", ".join(f"{k} {before.get(k, 'default')!r} -> {after.get(k, 'default')!r}"
+                           for k in keys[:4])
+        return f"with other options ({listed})"
+    return None
+
+
+def check_provenance(output_path, record: dict, resume: bool) -> None:
+    """On ``resume``, refuse to keep frames computed from another input or with other options;
+    then record what this run computes from (``NAME.source.json``, atomically).
+
+    Raises
+    ------
+    ValueError
+        If ``resume`` and the frames on disk were computed from something else, or nothing
+        says what they were computed from; the message says how to recompute them.
+    """
+    output_path = Path(output_path)
+    path = provenance_path(output_path)
+    if resume:
+        old = None
+        if path.is_file():
+            try:
+                old = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError, RecursionError):
+                old = None
+        frames = frame_names(output_path.parent / output_path.stem, output_path.stem)
+        change = ("from an unknown input (no readable record of it)"
+                  if frames and not isinstance(old, dict)
+                  else _provenance_change(old, record) if isinstance(old, dict) else None)
+        if change is not None:
+            raise ValueError(f"--resume: the frames of {output_path} were computed {change}; "
+                             f"run without --resume to compute them again")
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+
+
+@holds_folder("output_path")
 def surface_series(particles_path, output_path, *, client=None, resume: bool = False,
                    progress: bool = True, across_frames: int = 0,
                    **surface_options) -> FramesResult:
@@ -343,15 +485,25 @@ def surface_series(particles_path, output_path, *, client=None, resume: bool = F
     ``client`` and ``resume``. ``across_frames`` ``K`` in [0, 10]: with ``K > 0`` every
     frame's surface is then smoothed with those of the ``K`` frames on each side
     (:mod:`pipeline.across_frames`; the particles need an ``id`` array).
+
+    What the frames are computed from (the input's frames and the options) is recorded beside
+    the series (:func:`check_provenance`); ``resume`` refuses frames computed from anything
+    else instead of keeping them.
     """
     from .surface import surface_stages
 
     across_frames = check_int("across_frames", across_frames, 0, 10)
     surface_stages(**surface_options)  # validate the options here, before any task runs
+    particles_path, output_path = Path(particles_path), Path(output_path)
+    if output_path.suffix != ".pvd":
+        raise ValueError(f"output_path must end in .pvd, got {str(output_path)!r}")
+    record = _provenance(particles_path, surface_options, across_frames)
+    check_provenance(output_path, record, resume)  # before any frame is kept or removed
     if across_frames:
         from .across_frames import smooth_series_across_frames
 
         def single(source, target, **kwargs):
+            check_provenance(target, record, kwargs.get("resume", False))
             return map_frames(source, target, surface_frame, surface_options, **kwargs)
 
         return smooth_series_across_frames(particles_path, output_path, across_frames,

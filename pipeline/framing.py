@@ -10,19 +10,27 @@ velocities), else the last frame.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["robust_bounds", "join_bounds", "surface_area", "kinetic_energy",
-           "interesting_index", "frame_measures", "ROBUST_PERCENT"]
+           "interesting_index", "frame_measures", "clipping_range", "ROBUST_PERCENT",
+           "CLIP_REACH", "STRAY_FACTOR"]
 
 #: Points below this percentile or above ``100 -`` it, per axis and frame, are left out of the
 #: framing (strays).
 ROBUST_PERCENT = 1.0
+#: Points farther from the median point than this many times the median distance to it are
+#: left out of the framing before the percentiles (a particle flung kilometres away).
+STRAY_FACTOR = 20.0
 
 
 def robust_bounds(points, percent: float = ROBUST_PERCENT) -> np.ndarray | None:
     """``(xmin, xmax, ymin, ymax, zmin, zmax)`` of the points between the ``percent`` and
-    ``100 - percent`` percentiles on each axis, or None for no points.
+    ``100 - percent`` percentiles on each axis, or None for no (finite) points; non-finite
+    points, and points farther from the median point than :data:`STRAY_FACTOR` times the
+    median distance to it, are left out first.
 
     Parameters
     ----------
@@ -34,6 +42,16 @@ def robust_bounds(points, percent: float = ROBUST_PERCENT) -> np.ndarray | None:
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if not 0.0 <= percent < 50.0:
         raise ValueError(f"percent must be in [0, 50), got {percent!r}")
+    if not np.isfinite(points).all():  # a NaN or infinite point is nowhere: not framed
+        points = points[np.isfinite(points).all(axis=1)]
+    if len(points) > 2:
+        # a stray far beyond the rest (more than STRAY_FACTOR times the median distance from
+        # the median point) is left out before the percentiles, which a few strays among
+        # fewer than 100 points would still reach
+        distance = np.linalg.norm(points - np.median(points, axis=0), axis=1)
+        typical = float(np.median(distance))
+        if typical > 0:
+            points = points[distance <= STRAY_FACTOR * typical]
     if len(points) == 0:
         return None
     if percent == 0.0 or len(points) < 50:
@@ -41,6 +59,37 @@ def robust_bounds(points, percent: float = ROBUST_PERCENT) -> np.ndarray | None:
     else:
         lo, hi = np.percentile(points, [percent, 100.0 - percent], axis=0)
     return np.column_stack([lo, hi]).reshape(6)
+
+
+#: Radii of the framed sphere, beyond its centre's distance, within which everything drawn
+#: normally lies (the floor square reaches about 3 radii from the centre).
+CLIP_REACH = 4.0
+
+
+def clipping_range(fitted, distance: float, radius: float) -> tuple[float, float]:
+    """The camera's near and far clipping distances (m).
+
+    ``fitted`` is VTK's range fitted to every actor. A particle flying far away (or a NaN
+    point) stretches it so far that its near plane, a fixed fraction of the far one, moves
+    past the whole scene and every image comes out blank; the range is then taken from the
+    framed sphere (``radius`` m around the focal point, ``distance`` m from the camera),
+    ``CLIP_REACH`` radii deep on each side. A range within that is kept as VTK fitted it.
+
+    Parameters
+    ----------
+    fitted : (float, float)
+        VTK's ``(near, far)``.
+    distance : float
+        Camera to focal point (m).
+    radius : float
+        Radius of the framed bounds' sphere (m), > 0.
+    """
+    near, far = (float(v) for v in fitted)
+    reach = CLIP_REACH * radius
+    if math.isfinite(near) and math.isfinite(far) and 0.0 < near < far <= distance + reach:
+        return near, far
+    far = distance + reach
+    return max(distance - reach, 1e-3 * far), far
 
 
 def join_bounds(*bounds) -> np.ndarray | None:

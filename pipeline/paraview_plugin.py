@@ -28,6 +28,7 @@ import json
 import math
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
@@ -179,6 +180,18 @@ def _write_points(data, path):
     writer.EncodeAppendedDataOff()
     if writer.Write() != 1:
         raise RuntimeError(f"could not write {path}")
+
+
+def _written_elsewhere(folder):
+    """Whether a live process holds blobflow's lock on ``folder`` (pipeline/folderlock.py):
+    another source's run writes there, and its frames will come."""
+    try:
+        owner = json.loads((Path(folder) / ".blobflow.lock").read_text(encoding="utf-8"))
+        if owner.get("host") == socket.gethostname():  # another machine's: cannot be checked
+            os.kill(int(owner["pid"]), 0)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        return isinstance(exc, PermissionError)  # alive, someone else's; else none or dead
+    return True
 
 
 def _collection(path):
@@ -403,7 +416,9 @@ class SceneSource(VTKPythonAlgorithmBase):
         command = [blobflow_python(), "-m", "pipeline", "run", self.SCENE["name"], "--out",
                    str(folder), "--fps", repr(self._fps), "--duration", repr(self._duration),
                    "--no-render", "--quiet", "--resume", *self._assignments()]
-        self._log = open(folder / "paraview-run.log", "w", encoding="utf-8")
+        # a log of this source's own: two sources may share a folder
+        self._log_path = folder / f"paraview-run.{os.getpid()}-{id(self) & 0xffffff:06x}.log"
+        self._log = open(self._log_path, "w", encoding="utf-8")
         self._process = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT,
                                          env=_environment())
         self._process_folder = folder
@@ -437,10 +452,15 @@ class SceneSource(VTKPythonAlgorithmBase):
                 if all(len(entries) > index for entries in lists):
                     return {name: folder / entries[index][1]
                             for name, entries in zip(outputs, lists)}
+            if (self._process is None and folder == self._process_folder
+                    and not _written_elsewhere(folder)):
+                self._start(folder)  # the other writer stopped short of this frame: go on
             if self._process is not None and self._process.poll() is not None:
                 code = self._process.returncode
                 self._process = None
-                lines = [l for l in (folder / "paraview-run.log").read_text(
+                if code != 0 and _written_elsewhere(folder):
+                    continue  # refused: another source writes this folder; wait for it
+                lines = [l for l in self._log_path.read_text(
                     encoding="utf-8", errors="replace").splitlines() if l.strip()]
                 if code != 0:
                     raise RuntimeError(lines[-1] if lines else f"blobflow exited with {code}")

@@ -11,21 +11,25 @@ cluster.
 
 from __future__ import annotations
 
-import os
+import math
 from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from .framing import interesting_index
+from filters.memory import format_bytes, memory_limit
+from filters.validation import check_range
+
+from .framing import frame_measures, interesting_index
 from .offscreen import GL_PACKAGES, RenderUnavailableError
-from .framing import frame_measures
+from .outfiles import atomic_path, temporary_path
 from .renderer import Renderer
 from .series import read_collection, read_frame
 
 __all__ = ["Renderer", "RenderUnavailableError", "turntable", "timelapse", "write_movie",
            "parse_size", "MOVIE_SUFFIXES", "interesting_frame", "frame_at_time", "render_run",
-           "render_still", "GL_PACKAGES"]
+           "render_still", "GL_PACKAGES", "RenderError", "FPS_RANGE", "check_fps", "max_views", "gif_limit",
+           "check_movie_length", "default_fps"]
 
 MOVIE_SUFFIXES = (".gif", ".mp4")
 
@@ -127,31 +131,116 @@ def write_movie(images, out, *, fps: float = 24.0, count: int | None = None,
     import imageio.v2 as imageio
 
     out = Path(out)
+    fps = check_fps(fps)
     bar = tqdm(images, total=count, unit="image", disable=not progress, desc=desc)
     if out.suffix.lower() in MOVIE_SUFFIXES:
         out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.stem}.tmp{out.suffix}")
-        if out.suffix.lower() == ".gif":
-            writer = imageio.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
-        else:
-            writer = imageio.get_writer(tmp, fps=fps, codec="libx264", quality=7,
-                                        macro_block_size=2, pixelformat="yuv420p")
-        try:
-            for image in bar:
-                writer.append_data(image)
-        except BaseException:
-            writer.close()
-            tmp.unlink(missing_ok=True)
-            raise
-        writer.close()
-        os.replace(tmp, out)
+        # a name unique to this process, removed if anything fails or stops the writing
+        with atomic_path(out) as tmp:
+            if out.suffix.lower() == ".gif":
+                writer = imageio.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
+            else:
+                writer = imageio.get_writer(tmp, fps=fps, codec="libx264", quality=7,
+                                            macro_block_size=2, pixelformat="yuv420p",
+                                            ffmpeg_log_level="error")
+            try:
+                for image in bar:
+                    writer.append_data(image)
+            except BaseException:
+                _close_quietly(writer)
+                raise
+            try:
+                writer.close()
+            except (OSError, RuntimeError, ValueError) as exc:
+                raise RenderError(f"the encoder could not write {out}: "
+                                  f"{_last_line(exc)}") from None
     else:
         out.mkdir(parents=True, exist_ok=True)
         for k, image in enumerate(bar):
-            tmp = out / f".frame_{k:04d}.tmp.png"
-            imageio.imwrite(tmp, image)
-            os.replace(tmp, out / f"frame_{k:04d}.png")
+            with atomic_path(out / f"frame_{k:04d}.png") as tmp:
+                imageio.imwrite(tmp, image)
     return out
+
+
+def _close_quietly(writer) -> None:
+    try:
+        writer.close()
+    except Exception:  # noqa: BLE001 - the first error is the one reported
+        pass
+
+
+def _last_line(exc: BaseException) -> str:
+    """The last meaningful line of an encoder's error (ffmpeg's log is many lines)."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()
+             and not line.strip().endswith(":")]
+    return lines[-1] if lines else type(exc).__name__
+
+
+class RenderError(ValueError):
+    """A movie cannot be written as asked (an encoder's refusal, a limit of the machine)."""
+
+
+#: Frame rates a movie may have (frames per second): what the encoders and players take.
+FPS_RANGE = (0.01, 1000.0)
+
+
+def check_fps(fps) -> float:
+    """``fps`` as a float within :data:`FPS_RANGE`, else ValueError naming the range."""
+    return check_range("fps", fps, *FPS_RANGE)
+
+
+def gif_limit(size) -> tuple[int, str]:
+    """The most images a GIF of ``size`` (width, height) may have, and why: it holds them all
+    in memory until it is written, so only as many as fit
+    :func:`filters.memory.memory_limit`."""
+    width, height = (int(v) for v in size)
+    per_image = width * height * 4  # RGB, and the palette image made when it is written
+    limit = int(max(memory_limit() // per_image, 1))
+    return limit, (f"a GIF holds all its images in memory until it is written: {limit} images "
+                   f"of {width}x{height} ({format_bytes(per_image)} each) fit the memory limit "
+                   f"of {format_bytes(memory_limit())}")
+
+
+def max_views(size, out) -> tuple[int, str]:
+    """The most views a turntable ``out`` of ``size`` (width, height) may have, and why.
+
+    More than ``pi * width`` views turn the camera by less than a pixel at the image's edge
+    from one view to the next; a GIF may also have only as many images as fit in memory
+    (:func:`gif_limit`).
+    """
+    width = int(size[0])
+    limit = int(math.pi * width)
+    why = (f"{limit} views (pi times the {width}-pixel width) already turn the camera by less "
+           f"than a pixel at the image's edge from one view to the next")
+    if Path(out).suffix.lower() == ".gif":
+        memory, reason = gif_limit(size)
+        if memory < limit:
+            return memory, reason
+    return limit, why
+
+
+def check_movie_length(count: int, size, out, *, turntable: bool) -> None:
+    """Refuse, before drawing, a movie of more images than :func:`max_views` (a turntable)
+    or :func:`gif_limit` (a GIF) allow; the message states the limit and why."""
+    if turntable:
+        limit, why = max_views(size, out)
+    elif Path(out).suffix.lower() == ".gif":
+        limit, why = gif_limit(size)
+    else:
+        return
+    if count > limit:
+        what = "views" if turntable else "frames"
+        raise RenderError(f"{count} {what} are more than this movie can have: {why}")
+
+
+def default_fps(times) -> float:
+    """The frame rate that plays ``times`` (s) in real time, within :data:`FPS_RANGE`."""
+    times = np.asarray(times, dtype=np.float64)
+    if len(times) < 2:
+        return 24.0
+    step = float(np.diff(times).mean())
+    fps = 1.0 / step if step > 0 else FPS_RANGE[1]
+    return float(min(max(fps, FPS_RANGE[0]), FPS_RANGE[1]))
 
 
 def _turntable_index(series, time_index, time) -> tuple[int, str]:
@@ -189,6 +278,8 @@ def turntable(series, out, *, frames: int = 36, time_index: int | None = None,
     """
     if not (isinstance(frames, int) and not isinstance(frames, bool) and frames >= 2):
         raise ValueError(f"frames must be an integer >= 2, got {frames!r}")
+    check_movie_length(frames, size, out, turntable=True)
+    check_fps(fps)
     index, _ = _turntable_index(series, time_index, time)
     with Renderer(series, size=size, color_by=color_by, frames=[index]) as renderer:
         images = (renderer.render(index, 360.0 * k / frames) for k in range(frames))
@@ -202,10 +293,12 @@ def timelapse(series, out, *, orbit: float = 0.0, size=(640, 480), color_by: str
     ``fps`` defaults to the series' own frame rate (from its times), so the movie plays in real
     time.  The camera is framed once from all the frames.
     """
+    check_movie_length(len(read_collection(_series_list(series)[0])), size, out,
+                       turntable=False)
     with Renderer(series, size=size, color_by=color_by) as renderer:
         n = len(renderer.times)
         if fps is None:
-            fps = 1.0 / float(np.diff(renderer.times).mean()) if n > 1 else 24.0
+            fps = default_fps(renderer.times)
         images = (renderer.render(i, orbit * i / max(n - 1, 1)) for i in range(max(n, 1)))
         return write_movie(images, out, fps=fps, count=n, progress=progress, desc="time-lapse")
 
@@ -229,9 +322,8 @@ def render_still(series, out, *, time_index: int | None = None, time: float | No
         image = renderer.render(index, azimuth)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp.png")
-    imageio.imwrite(tmp, image)
-    os.replace(tmp, out)
+    with atomic_path(out) as tmp:
+        imageio.imwrite(tmp, image)
     return out, index
 
 
@@ -262,7 +354,7 @@ def render_run(series_paths, directory, *, turntable_frames: int = 24, size=(640
                  for k in range(turntable_frames))
         spin = write_movie(views, directory / "turntable.gif", fps=24.0, count=turntable_frames,
                            progress=progress, desc="turntable")
-        fps = 1.0 / float(np.diff(renderer.times).mean()) if n > 1 else 24.0
+        fps = default_fps(renderer.times)
         images = (renderer.render(i, 90.0 * i / max(n - 1, 1)) for i in range(max(n, 1)))
         movie = write_movie(images, directory / "movie.mp4", fps=fps, count=n, progress=progress,
                             desc="time-lapse")
@@ -279,10 +371,8 @@ def render_frame_task(series, out_file, time, options) -> None:
                   frames=[options["index"]], bounds=options["bounds"],
                   clim=options["clim"], age_scale=options["age_scale"]) as renderer:
         image = renderer.render(options["index"], options["azimuth"])
-    out_file = Path(out_file)
-    tmp = out_file.with_name(f".{out_file.stem}.tmp.png")
-    imageio.imwrite(tmp, image)
-    os.replace(tmp, out_file)
+    with atomic_path(Path(out_file)) as tmp:
+        imageio.imwrite(tmp, image)
 
 
 def render_frames(series, out, *, client=None, turntable_frames: int | None = None,
@@ -310,6 +400,10 @@ def render_frames(series, out, *, client=None, turntable_frames: int | None = No
     out = Path(out)
     frames = None
     if turntable_frames is not None:
+        check_movie_length(turntable_frames, size, out, turntable=True)
+    else:
+        check_movie_length(len(read_collection(series[0])), size, out, turntable=False)
+    if turntable_frames is not None:
         index, _ = _turntable_index(series, time_index, time)
         frames = [index]
     with Renderer(series, size=size, color_by=color_by, frames=frames, floor=False,
@@ -324,24 +418,30 @@ def render_frames(series, out, *, client=None, turntable_frames: int | None = No
     else:
         views = [(i, orbit * i / max(n - 1, 1)) for i in range(max(n, 1))]
         if fps is None:
-            fps = 1.0 / float(np.diff(times).mean()) if n > 1 else 24.0
+            fps = default_fps(times)
+    fps = check_fps(fps)
     movie = out.suffix.lower() in MOVIE_SUFFIXES
-    folder = out.with_name(f".{out.stem}.frames") if movie else out
+    # the images of a movie go to a folder of this process's own, removed however it ends
+    folder = temporary_path(out.with_suffix(".frames")) if movie else out
     folder.mkdir(parents=True, exist_ok=True)
-    jobs = []
-    for k, (index, azimuth) in enumerate(views):
-        options = {"index": index, "azimuth": azimuth, "size": tuple(size), "color_by": color_by,
-                   "bounds": bounds, "clim": clim, "age_scale": age_scale}
-        t = float(times[index]) if n else 0.0
-        jobs.append((k, t, (render_frame_task, series, str(folder / f"frame_{k:04d}.png"), t, options)))
-    _, failures = run_tasks(jobs, client=client, progress=progress, desc="render")
-    if failures:
-        raise FramesError(failures, out)
-    if movie:
-        pngs = [folder / f"frame_{k:04d}.png" for k in range(len(views))]
-        write_movie((imageio.imread(p) for p in pngs), out, fps=fps, count=len(pngs),
-                    progress=False)
-        for p in pngs:
-            p.unlink()
-        folder.rmdir()
+    pngs = [folder / f"frame_{k:04d}.png" for k in range(len(views))]
+    try:
+        jobs = []
+        for k, (index, azimuth) in enumerate(views):
+            options = {"index": index, "azimuth": azimuth, "size": tuple(size),
+                       "color_by": color_by, "bounds": bounds, "clim": clim,
+                       "age_scale": age_scale}
+            t = float(times[index]) if n else 0.0
+            jobs.append((k, t, (render_frame_task, series, str(pngs[k]), t, options)))
+        _, failures = run_tasks(jobs, client=client, progress=progress, desc="render")
+        if failures:
+            raise FramesError(failures, out)
+        if movie:
+            write_movie((imageio.imread(p) for p in pngs), out, fps=fps, count=len(pngs),
+                        progress=False)
+    finally:
+        if movie:
+            for p in pngs:
+                p.unlink(missing_ok=True)
+            folder.rmdir()
     return out

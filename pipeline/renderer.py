@@ -33,7 +33,8 @@ from filters.validation import check_bool, check_int  # noqa: E402
 
 from . import actors, looks  # noqa: E402
 from .colliders import COLLIDERS_FILE, collider_mesh, read_colliders  # noqa: E402
-from .framing import frame_measures, interesting_index, join_bounds, robust_bounds  # noqa: E402
+from .framing import (CLIP_REACH, clipping_range, frame_measures, interesting_index, join_bounds,  # noqa: E402
+                      robust_bounds)
 from .series import read_collection, read_frame  # noqa: E402
 
 __all__ = ["Renderer", "SUPERSAMPLE"]
@@ -332,6 +333,8 @@ class Renderer:
 
     def _fill(self, layer: _Layer, data) -> None:
         """Show ``data`` in the layer's actor, with the colour array as a scalar (magnitude)."""
+        if layer.kind in ("points", "smoke"):
+            data = self._without_strays(data)
         layer.slot.copy_from(data, deep=False)
         if layer.kind == "smoke":
             if data.n_points == 0:
@@ -353,6 +356,22 @@ class Renderer:
         if name and name in layer.slot.point_data:
             # copy_from() resets the active scalars the mapper draws: restore them.
             layer.slot.point_data.active_scalars_name = name
+
+    def _without_strays(self, data):
+        """A point cloud without its NaN points and those beyond the clipping reach
+        (:data:`pipeline.framing.CLIP_REACH` framed radii from the centre): out of the picture
+        anyway, they would stretch VTK's bounds and with them the shadows' frustum."""
+        if data.n_points == 0:
+            return data
+        points = _points_of(data)
+        with np.errstate(invalid="ignore"):
+            keep = np.linalg.norm(points - self.center, axis=1) <= CLIP_REACH * self.radius
+        if keep.all():
+            return data
+        kept = pv.PolyData(np.ascontiguousarray(points[keep]))
+        for name in data.point_data.keys():
+            kept.point_data[name] = np.asarray(data.point_data[name])[keep]
+        return kept
 
     def _point_radius(self, data) -> float:
         """Half the mean spacing of ``data``'s points in the framed box (dense blocks look
@@ -465,7 +484,9 @@ class Renderer:
         near, far = self._scene.GetActiveCamera().GetClippingRange()
         self._over.ResetCameraClippingRange()
         over_near, over_far = self._over.GetActiveCamera().GetClippingRange()
-        self._scene.GetActiveCamera().SetClippingRange(min(near, over_near), max(far, over_far))
+        # from what is framed when a stray particle or a NaN would stretch it (blank images)
+        self._scene.GetActiveCamera().SetClippingRange(*clipping_range(
+            (min(near, over_near), max(far, over_far)), distance, self.radius))
 
     def _show(self, index: int) -> None:
         """Fill every layer with frame ``index`` and label it."""

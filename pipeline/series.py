@@ -19,8 +19,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
-import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -36,7 +34,11 @@ from vtkmodules.vtkIOXML import (
     vtkXMLUnstructuredGridWriter,
 )
 
+from filters.memory import format_bytes, memory_limit
+
 from .algorithm import vtk_messages
+from .outfiles import atomic_path, frames_folder, remove_frames, sweep_temporaries
+from .xmlcheck import UnsafeFileError, check_vtk_xml
 from .xdmf import export_xdmf
 
 __all__ = [
@@ -74,12 +76,10 @@ def _format_time(t: float) -> str:
 
 
 def _atomic_write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
         f.write(text)
         f.flush()
         os.fsync(f.fileno())
-    os.replace(tmp, path)
 
 
 def check_finite_dataset(data: vtkDataObject, what: str = "dataset") -> None:
@@ -118,10 +118,8 @@ def write_frame(data: vtkDataObject, path) -> Path:
     frame_extension(data)
     check_finite_dataset(data, str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
     writer = _WRITERS[data.GetClassName()][1]()
     writer.SetInputData(data)
-    writer.SetFileName(str(tmp))
     writer.SetDataModeToAppended()
     writer.EncodeAppendedDataOff()
     writer.SetCompressorTypeToZLib()
@@ -129,10 +127,13 @@ def write_frame(data: vtkDataObject, path) -> Path:
     # frame at level 5), and level 1 writes 20-30 % faster
     writer.SetCompressionLevel(1)
     writer.SetHeaderTypeToUInt64()
-    if writer.Write() != 1 or writer.GetErrorCode() != 0:
-        tmp.unlink(missing_ok=True)
-        raise OSError(f"VTK could not write {path}")
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:  # a unique name, removed if the write fails or is stopped
+        writer.SetFileName(str(tmp))
+        with vtk_messages() as log:
+            ok = writer.Write() == 1 and writer.GetErrorCode() == 0
+        if not ok:
+            raise OSError(f"VTK could not write {path}"
+                          + (f": {log.errors[0]}" if log.errors else ""))
     return path
 
 
@@ -160,7 +161,10 @@ class SeriesWriter:
         if self.path.suffix != ".pvd":
             raise ValueError(f"a series path must end in .pvd, got {str(self.path)!r}")
         self.name = self.path.stem
-        self.frames_dir = self.path.parent / self.name
+        if not self.name.isidentifier():
+            raise ValueError(f"a series name must be a Python identifier such as 'particles', "
+                             f"got {self.name!r}")
+        self.frames_dir = frames_folder(self.path.parent, self.name)  # a link is refused
         self.entries: list[tuple[float, str]] = []
         self._class: str | None = None
         self._fresh = not resume
@@ -214,11 +218,10 @@ class SeriesWriter:
         self._write_collections()
 
     def _clear_stale(self) -> None:
-        if self.frames_dir.is_dir():
-            pattern = re.compile(rf"^{re.escape(self.name)}_\d+\.vt[pui]$")
-            for f in self.frames_dir.iterdir():
-                if pattern.match(f.name):
-                    f.unlink()
+        # the one rule of pipeline.outfiles: frames named NAME_<digits>.vt?, nothing else
+        frames_folder(self.path.parent, self.name)
+        remove_frames(self.frames_dir, self.name)
+        sweep_temporaries(self.frames_dir)
         self._fresh = False
 
     def write(self, data: vtkDataObject, time: float) -> Path:
@@ -305,6 +308,12 @@ def read_collection(path) -> list[tuple[float, str]]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such series file: {path}")
+    # a list in memory takes about 30 times its text: refuse one that cannot fit
+    limit = memory_limit() // 32
+    if path.stat().st_size > limit:
+        raise SeriesError(f"{path} is {format_bytes(path.stat().st_size)}, more than a "
+                          f"collection of frames can be ({format_bytes(limit)}: 1/32 of the "
+                          f"memory limit)")
     try:
         if path.suffix == ".series":
             doc = json.loads(path.read_text(encoding="utf-8"))
@@ -316,10 +325,13 @@ def read_collection(path) -> list[tuple[float, str]]:
             entries = [(float(d.get("timestep", "0")), d.get("file")) for d in root.iter("DataSet")]
         else:
             raise SeriesError(f"a series file ends in .pvd or .series, got {path.name!r}")
-    except (ET.ParseError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+    except (ET.ParseError, json.JSONDecodeError, KeyError, TypeError, ValueError,
+            OverflowError, RecursionError) as exc:
         if isinstance(exc, SeriesError):
             raise
         raise SeriesError(f"{path} is not a valid series file: {exc}") from None
+    except OSError as exc:
+        raise SeriesError(f"{path} cannot be read: {exc.strerror or exc}") from None
     if any(name is None for _, name in entries):
         raise SeriesError(f"{path} lists a DataSet without a file")
     previous = -math.inf
@@ -331,13 +343,18 @@ def read_collection(path) -> list[tuple[float, str]]:
     return entries
 
 
-def validate_series(path) -> list[tuple[float, str]]:
+def validate_series(path, on_frame=None) -> list[tuple[float, str]]:
     """Read a collection and every frame it lists; raise :class:`SeriesError` naming the first
-    missing, truncated or corrupt one.  Returns the entries of :func:`read_collection`."""
+    missing, truncated or corrupt one.  Returns the entries of :func:`read_collection`.
+
+    ``on_frame(index, data)``, when given, sees each frame as it is read (one at a time), so
+    that a caller can check what it needs of the input before any work starts."""
     path = Path(path)
     entries = read_collection(path)
-    for _, name in entries:
-        read_frame(path.parent / name)
+    for index, (_, name) in enumerate(entries):
+        data = read_frame(path.parent / name)
+        if on_frame is not None:
+            on_frame(index, data)
     return entries
 
 
@@ -349,7 +366,12 @@ def read_frame(path) -> vtkDataObject:
         raise SeriesError(f"cannot read {path.name}: supported {sorted(_READERS)}")
     if not path.is_file():
         raise SeriesError(f"series frame {path} is missing")
-    _check_appended_headers(path)
+    try:
+        check_vtk_xml(path)  # declared sizes against the file and memory, before VTK allocates
+    except UnsafeFileError as exc:
+        raise SeriesError(f"series frame {exc}") from None
+    except OSError as exc:
+        raise SeriesError(f"series frame {path} cannot be read: {exc.strerror or exc}") from None
     reader = reader_class()
     with vtk_messages() as log:
         readable = reader.CanReadFile(str(path))
@@ -363,61 +385,6 @@ def read_frame(path) -> vtkDataObject:
     data = reader.GetOutputDataObject(0)
     _check_frame_complete(reader, data, path)
     return data
-
-
-#: zlib cannot expand data more than about 1032 times: a block header that claims more is damaged.
-_MAX_EXPANSION = 1100
-_HEAD_LIMIT = 1 << 24  # the XML part of a frame is small; appended data starts after it
-
-
-def _check_appended_headers(path: Path) -> None:
-    """Check the binary block headers of raw appended data before VTK trusts them.
-
-    VTK's XML readers allocate what a block header claims; one damaged bit there makes them
-    request exabytes and abort the whole process (``std::bad_alloc``), which no exception can
-    catch.  Each array's header must fit in the file, and compressed blocks may not claim more
-    than zlib can expand.  Files without raw appended data are left to VTK.
-    """
-    size = path.stat().st_size
-    with open(path, "rb") as f:
-        head = f.read(min(size, _HEAD_LIMIT))
-        marker = re.search(rb'<AppendedData[^>]*encoding="raw"[^>]*>\s*_', head)
-        if marker is None:
-            return
-        xml = head[: marker.start()]
-        base = marker.end()
-        word = 4 if re.search(rb'header_type="UInt32"', xml) else 8
-        if not re.search(rb'<VTKFile[^>]*header_type=', xml):
-            word = 4  # the XML format's default header type
-        fmt = "<" if re.search(rb'byte_order="LittleEndian"', xml) else ">"
-        fmt += "I" if word == 4 else "Q"
-        compressed = re.search(rb'<VTKFile[^>]*compressor="', xml) is not None
-        offsets = [int(m.group(1)) for m in
-                   re.finditer(rb'<DataArray[^>]*format="appended"[^>]*offset="\s*(\d+)', xml)]
-        for offset in offsets:
-            start = base + offset
-            f.seek(start)
-            if compressed:
-                fixed = f.read(3 * word)
-                if len(fixed) < 3 * word:
-                    raise SeriesError(f"series frame {path} is truncated (array header at byte "
-                                      f"{start} past the end)")
-                blocks, block_size, last = struct.unpack(fmt[0] + fmt[1] * 3, fixed)
-                if blocks * word > size - start:
-                    raise SeriesError(f"series frame {path} is corrupt: an array header claims "
-                                      f"{blocks} blocks")
-                sizes = struct.unpack(fmt[0] + fmt[1] * blocks, f.read(blocks * word))
-                stored = sum(sizes)
-                claimed = block_size * max(blocks - 1, 0) + (last or block_size) * (blocks > 0)
-                if (start + (3 + blocks) * word + stored > size
-                        or claimed > _MAX_EXPANSION * stored + 65536):
-                    raise SeriesError(f"series frame {path} is corrupt or truncated: an array "
-                                      f"header at byte {start} does not match the file")
-            else:
-                raw = f.read(word)
-                if len(raw) < word or start + word + struct.unpack(fmt, raw)[0] > size:
-                    raise SeriesError(f"series frame {path} is corrupt or truncated: an array "
-                                      f"at byte {start} runs past the end of the file")
 
 
 def _check_frame_complete(reader, data, path) -> None:

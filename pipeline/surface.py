@@ -54,7 +54,7 @@ from filters.kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from filters.surface.anisotropy import check_anisotropy
 from filters.surface.csg import OPERATIONS, combine_dense, combine_sparse
 from filters.surface.ellipsoids import ANISOTROPIC_KERNELS
-from filters.surface.grid import DEFAULT_MAX_BYTES
+from filters.surface.grid import DEFAULT_MAX_BYTES, check_budget
 from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
                                    splat_sparse_anisotropic)
 from filters.surface.tetra import TetraPieces
@@ -62,8 +62,8 @@ from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
 from .algorithm import Algorithm, run_chain
-from .contour import (CONTOUR_METHODS, Pieces, brick_images, flying_edges, image_of,
-                      mesh_to_polydata)
+from .contour import (CONTOUR_METHODS, Pieces, brick_images, check_grid_sizes, flying_edges,
+                      image_of, mesh_to_polydata)
 from .liquid import ClipBox, VolumeCorrection
 from .mesh_stages import Normals, Smooth
 from .particle_stages import (FeatureSmoothing, InterpolateAttributes, check_optional_range,
@@ -145,9 +145,11 @@ class MetaballSplat(Algorithm):
                  max_bytes: int = DEFAULT_MAX_BYTES, implicit: Shape | None = None,
                  operation: str = "intersection", anisotropic: bool = False,
                  anisotropy: dict | None = None, mirror_walls: bool = False):
-        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
+        self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False,
+                                  high_inclusive=False)
         self.cell_size = (self.radius / 2 if cell_size is None else
-                          check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False))
+                          check_range("cell_size", cell_size, 0.0, math.inf, low_inclusive=False,
+                                      high_inclusive=False))
         self.kernel = check_choice("kernel", kernel, SPLAT_KERNELS)
         self.anisotropic = check_bool("anisotropic", anisotropic)
         if self.anisotropic and kernel not in ANISOTROPIC_KERNELS:
@@ -174,6 +176,9 @@ class MetaballSplat(Algorithm):
             support = (self.support_r if self.support_r is not None
                        else SPLAT_DEFAULTS[self.kernel]["support"])
             check_anisotropy(support, **self.anisotropy)
+        check_grid_sizes(self.radius, self.cell_size, self.kernel, self.support_r,
+                         self.block_size, self.brick_blocks, self.max_bytes,
+                         self.sparse and self.radius_array is None)
         Algorithm.__init__(
             self, nInputPorts=1, inputType="vtkPointSet", nOutputPorts=1,
             outputType="vtkPartitionedDataSet" if self.sparse else "vtkImageData")
@@ -225,8 +230,13 @@ class MetaballSplat(Algorithm):
             out = vtkPartitionedDataSet.GetData(outInfo, 0)
             out.Initialize()
             k = 0
-            for origin, values in brick_images(grid, self.brick_blocks):
-                # deep copies: the output outlives this call and the reused buffer
+            spent = grid.data.nbytes
+            for origin, values in brick_images(grid, self.brick_blocks, max_bytes=self.max_bytes):
+                # deep copies: the output outlives this call and the reused buffer; they count
+                # against the budget with the grid
+                spent += values.nbytes
+                check_budget(spent, self.max_bytes, f"the grid and {k + 1} brick images of "
+                             f"{values.shape[0]}^3 voxels")
                 image, _keep = image_of(values, origin, deep=True)
                 image.SetOrigin(*(origin.astype(np.float64) * grid.cell_size))
                 image.SetSpacing(grid.cell_size, grid.cell_size, grid.cell_size)

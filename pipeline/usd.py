@@ -30,6 +30,8 @@ import numpy as np
 
 from filters.validation import check_range
 
+from .outfiles import atomic_path
+
 __all__ = ["export_usd", "UsdUnavailableError", "time_codes"]
 
 
@@ -58,9 +60,10 @@ def time_codes(times, fps: float) -> np.ndarray:
     fps : float
         Frames per second, > 0.
     """
-    codes = np.asarray(times, dtype=np.float64) * float(fps)
-    whole = np.round(codes)
-    return np.where(np.abs(codes - whole) <= 1e-6, whole, codes)
+    with np.errstate(over="ignore", invalid="ignore"):  # checked by the caller: finite codes
+        codes = np.asarray(times, dtype=np.float64) * float(fps)
+        whole = np.round(codes)
+        return np.where(np.abs(codes - whole) <= 1e-6, whole, codes)
 
 
 def _frame_rate(times, series_path: Path) -> float:
@@ -69,12 +72,17 @@ def _frame_rate(times, series_path: Path) -> float:
     if record.is_file():
         try:
             fps = float(json.loads(record.read_text(encoding="utf-8")).get("fps"))
-            if math.isfinite(fps) and fps > 0:
+            if math.isfinite(fps) and 0 < fps <= _MAX_FPS:
                 return fps
-        except (OSError, ValueError, TypeError, AttributeError):
+        except (OSError, ValueError, TypeError, AttributeError, RecursionError):
             pass
     if len(times) > 1:
-        return float(1.0 / np.median(np.diff(times)))
+        step = float(np.median(np.diff(times)))
+        fps = 1.0 / step if step > 0 else math.inf
+        if math.isfinite(fps) and 0 < fps <= _MAX_FPS:
+            return fps
+        raise ValueError(f"{series_path}: its frame times are {step:g} s apart, more than "
+                         f"{_MAX_FPS:g} frames a second; give --fps")
     return 24.0
 
 
@@ -83,7 +91,7 @@ def _record_radius(series_path: Path) -> float | None:
     record = series_path.parent / "scene.json"
     try:
         spacing = float(json.loads(record.read_text(encoding="utf-8"))["parameters"]["spacing"])
-    except (OSError, ValueError, TypeError, KeyError):
+    except (OSError, ValueError, TypeError, KeyError, RecursionError):
         return None
     return 0.5 * spacing if math.isfinite(spacing) and spacing > 0 else None
 
@@ -206,11 +214,11 @@ def export_usd(series, usd_path, *, fps: float | None = None,
     usd_path : str or Path
         Output stage: ``.usd`` / ``.usdc`` (binary crate) or ``.usda`` (text).
     fps : float, optional
-        Time codes per second (> 0); default the producing run's ``fps`` (its ``scene.json``),
+        Time codes per second, in (0, 1e6]; default the producing run's ``fps`` (its ``scene.json``),
         else one over the median time step of the first series.
     radius : float, optional
         Particle and strand radius (m, > 0) for the ``widths`` where a series has no ``radius``
-        array; default half the run's ``spacing``, else 0.005 m.
+        array, finite; default half the run's ``spacing``, else 0.005 m.
 
     Returns
     -------
@@ -222,7 +230,8 @@ def export_usd(series, usd_path, *, fps: float | None = None,
     UsdUnavailableError
         If ``usd-core`` is not installed.
     ValueError
-        For a bad ``usd_path`` suffix, ``fps`` or ``radius``, or names used twice, before
+        For a bad ``usd_path`` suffix, ``fps`` or ``radius``, names used twice, NaN or infinite
+        values in a frame, or frame times that do not give distinct finite time codes, before
         anything is written.
     FileNotFoundError, pipeline.series.SeriesError
         For a missing or malformed series.
@@ -237,9 +246,10 @@ def export_usd(series, usd_path, *, fps: float | None = None,
     if usd_path.suffix not in (".usd", ".usda", ".usdc"):
         raise ValueError(f"usd_path must end in .usd, .usda or .usdc, got {str(usd_path)!r}")
     if fps is not None:
-        fps = check_range("fps", fps, 0.0, math.inf, low_inclusive=False)
+        fps = check_range("fps", fps, 0.0, _MAX_FPS, low_inclusive=False)
     if radius is not None:
-        radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)
+        radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False,
+                             high_inclusive=False)
     names = [p.name.split(".")[0] for p in paths]
     if len(set(names)) != len(names):
         raise ValueError(f"series names must differ (each is a prim), got {names}")
@@ -247,11 +257,49 @@ def export_usd(series, usd_path, *, fps: float | None = None,
     if bad:
         raise ValueError(f"series name {bad[0]!r} is not a valid USD prim name")
     loaded = [read_series(p) for p in paths]
+    for path, (_, meshes) in zip(paths, loaded):
+        _check_finite_frames(path, meshes)
     fps = fps or _frame_rate(loaded[0][0], paths[0])
     radius = radius or _record_radius(paths[0]) or 0.005
     all_codes = [time_codes(times, fps) for times, _ in loaded]
+    for path, codes in zip(paths, all_codes):
+        _check_codes(path, codes, fps)
 
-    tmp = usd_path.with_name(f".{usd_path.stem}.tmp{usd_path.suffix}")
+    with atomic_path(usd_path) as tmp:  # a unique name, removed if anything fails
+        _write_stage(tmp, names, paths, loaded, all_codes, fps, radius, Usd, UsdGeom, Vt)
+    return usd_path
+
+
+#: Largest frame rate (time codes per second) accepted: a movie's frames far apart enough
+#: that ``t * fps`` stays exact in double precision for any sensible duration.
+_MAX_FPS = 1e6
+
+
+def _check_finite_frames(path: Path, meshes) -> None:
+    """Refuse NaN or infinite points and point arrays (USD would store them)."""
+    for index, mesh in enumerate(meshes):
+        arrays = [("points", np.asarray(mesh.points))] + [
+            (f"point array {name!r}", np.asarray(mesh.point_data[name]))
+            for name in mesh.point_data.keys()]
+        for what, values in arrays:
+            if np.issubdtype(values.dtype, np.floating) and not np.isfinite(values).all():
+                raise ValueError(f"{path}: frame {index} has NaN or infinite {what}; USD "
+                                 f"cannot hold them")
+
+
+def _check_codes(path: Path, codes: np.ndarray, fps: float) -> None:
+    """The time codes of a series must be finite and increasing (each frame its own sample)."""
+    if not np.all(np.isfinite(codes)):
+        raise ValueError(f"{path}: its frame times at {fps:g} fps give time codes beyond what "
+                         f"a double holds")
+    if len(codes) > 1 and not np.all(np.diff(codes) > 0):
+        k = int(np.flatnonzero(~(np.diff(codes) > 0))[0])
+        raise ValueError(f"{path}: frames {k} and {k + 1} fall on the same time code "
+                         f"({codes[k]:.17g}) at {fps:g} fps: their times are too far from 0 for "
+                         f"double precision to tell them apart")
+
+
+def _write_stage(tmp, names, paths, loaded, all_codes, fps, radius, Usd, UsdGeom, Vt) -> None:
     stage = Usd.Stage.CreateNew(str(tmp))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, UsdGeom.LinearUnits.meters)
@@ -263,13 +311,7 @@ def export_usd(series, usd_path, *, fps: float | None = None,
         stage.SetEndTimeCode(float(codes.max()))
     root = UsdGeom.Xform.Define(stage, "/blobflow")
     stage.SetDefaultPrim(root.GetPrim())
-    try:
-        for name, path, (times, meshes), series_codes in zip(names, paths, loaded, all_codes):
-            _write_series(stage, path, name, times, meshes, [float(c) for c in series_codes],
-                          radius, UsdGeom, Vt)
-        stage.GetRootLayer().Save()
-        del stage
-        os.replace(tmp, usd_path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return usd_path
+    for name, path, (times, meshes), series_codes in zip(names, paths, loaded, all_codes):
+        _write_series(stage, path, name, times, meshes, [float(c) for c in series_codes],
+                      radius, UsdGeom, Vt)
+    stage.GetRootLayer().Save()

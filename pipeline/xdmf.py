@@ -20,12 +20,13 @@ Reference: the XDMF model and format, https://www.xdmf.org/index.php/XDMF_Model_
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from vtkmodules.util import numpy_support
+
+from .outfiles import atomic_path
 
 __all__ = ["export_xdmf", "xdmf_topology"]
 
@@ -198,10 +199,10 @@ def export_xdmf(series_path, xdmf_path=None) -> Path:
             raise ValueError(f"{series_path.name} changes topology at t = {t}; XDMF export "
                              f"needs a fixed mesh")
     h5_path = xdmf_path.with_suffix(".h5")
-    h5_tmp = h5_path.with_name(f".{h5_path.name}.tmp")
     h5_name = h5_path.name
     grids = []
-    with h5py.File(h5_tmp, "w") as h5:
+    # temporary names unique to this process, removed if the export fails (pipeline.outfiles)
+    with atomic_path(h5_path) as h5_tmp, h5py.File(h5_tmp, "w") as h5:
         h5.create_dataset("topology", data=cells)
         topo_xml = (f'<Topology {" ".join(f"{k}={quoteattr(v)}" for k, v in topology.items())}>'
                     f'{_data_item(cells, h5_name, "/topology")}</Topology>')
@@ -227,8 +228,6 @@ def export_xdmf(series_path, xdmf_path=None) -> Path:
     text = ('<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n<Domain>\n'
             f'<Grid Name={quoteattr(xdmf_path.stem)} GridType="Collection" '
             'CollectionType="Temporal">\n' + "\n".join(grids) + "\n</Grid>\n</Domain>\n</Xdmf>\n")
-    os.replace(h5_tmp, h5_path)
-    xml_tmp = xdmf_path.with_name(f".{xdmf_path.name}.tmp")
-    xml_tmp.write_text(text, encoding="utf-8")
-    os.replace(xml_tmp, xdmf_path)
+    with atomic_path(xdmf_path) as xml_tmp:
+        xml_tmp.write_text(text, encoding="utf-8")
     return xdmf_path

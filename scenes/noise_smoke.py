@@ -10,8 +10,11 @@ translucent sprites fading with age; ``surface=true`` also writes a metaball sur
 
 from __future__ import annotations
 
+import math
+
 from filters.advect import BoxEmitter, NoiseAdvection, check_integrator
 from filters.fields import CurlNoise
+from filters.memory import check_memory
 from filters.geometry import Plane, Sphere
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
@@ -31,9 +34,9 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
     Parameters
     ----------
     rate : float
-        Particles emitted per second (> 0).
+        Particles emitted per second (> 0, finite).
     lifetime : float
-        Mean particle lifetime (s), > 0 (+-25 % jitter).
+        Mean particle lifetime (s), > 0 and finite (+-25 % jitter).
     rise : float
         Speed of the uniform rising flow (m/s).
     amplitude : float
@@ -57,11 +60,16 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
     integrator : str
         One of euler, rk2, rk4, linearized_backward_euler.
     max_particles : int
-        Cap on live particles (>= 1).
+        Cap on live particles (>= 1); with ``rate`` and ``lifetime``, the live particles must
+        fit the memory limit (:mod:`filters.memory`), checked before the run.
     seed : int
         Seed of the emitter and of the noise (>= 0).
     """
-    check_range("rate", rate, 0.0, low_inclusive=False)
+    rate = check_range("rate", rate, 0.0, math.inf, low_inclusive=False, high_inclusive=False)
+    lifetime = check_range("lifetime", lifetime, 0.0, math.inf, low_inclusive=False,
+                           high_inclusive=False)
+    max_particles = check_int("max_particles", max_particles, 1)
+    _check_particle_memory(rate, lifetime, max_particles)
     check_range("ball_radius", ball_radius, 0.0)
     check_range("radius", radius, 0.0, low_inclusive=False)
     check_integrator(integrator)
@@ -95,6 +103,23 @@ def build(*, rate: float = 3000.0, lifetime: float = 2.0, rise: float = 0.6,
                                             volume_correction=False),
                  input="particles")
     return flow
+
+
+#: Bytes a live particle takes over a run: its state (position, velocity, id, age, lifetime,
+#: size, colour: 88 bytes), the frame's arrays and VTK's copy for the writer, with a margin.
+BYTES_PER_PARTICLE = 400
+
+
+def _check_particle_memory(rate: float, lifetime: float, max_particles: int) -> None:
+    """Refuse, before the run, more live particles than the memory limit holds.
+
+    At most ``rate * lifetime * 1.25`` particles are alive at once (lifetimes jitter by 25 %,
+    plus one step's emission), and never more than ``max_particles``.
+    """
+    live = min(float(max_particles), rate * lifetime * 1.25 + rate / 120.0 + 1.0)
+    check_memory(f"noise_smoke with rate = {rate:g}/s, lifetime = {lifetime:g} s and "
+                 f"max_particles = {max_particles:,}: up to {live:,.0f} live particles",
+                 live * BYTES_PER_PARTICLE, hint="lower rate, lifetime or max_particles")
 
 
 SCENE = Scene("noise_smoke", build,

@@ -26,6 +26,7 @@ from ..validation import check_bool, check_choice, check_int, check_points, chec
 from .anisotropy import check_anisotropy, kernel_matrices
 from .covariance import SMOOTHING_RAMP
 from .ellipsoids import ANISOTROPIC_ISO, ANISOTROPIC_KERNELS, ellipsoid_grid, splat_ellipsoids_dense
+from .crowding import check_crowding
 from .grid import (DEFAULT_MAX_BYTES, DenseField, GridTooLargeError, SparseGrid, check_block_range,
                    check_budget)
 from .spheres import sphere_grid
@@ -74,6 +75,8 @@ def check_splat_args(positions, radius, cell_size, kernel, support_r, iso, block
     blobbiness = check_range("blobbiness", blobbiness, 0.0, 100.0, low_inclusive=False)
     max_bytes = check_int("max_bytes", max_bytes, 1)
     radii = check_radii("radius", radius, positions.shape[0])
+    if positions.shape[0]:  # quadratic work refused before it starts (filters.surface.crowding)
+        check_crowding(positions, support_r * float(radii.max()))
     return positions, radii, kernel, cell_size, support_r, iso, block_size, blobbiness, max_bytes
 
 

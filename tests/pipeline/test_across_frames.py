@@ -57,7 +57,7 @@ def test_a_static_series_keeps_its_single_frame_surfaces(tmp_path):
         np.testing.assert_array_equal(q, p)
     # the first pass's single-frame surfaces are gone once the series is complete
     assert sorted(f.name for f in (tmp_path / "five").iterdir()) == [
-        "surface", "surface.pvd", "surface.vtp.series"]
+        "surface", "surface.pvd", "surface.source.json", "surface.vtp.series"]
 
 
 def test_a_moving_drop_jitters_no_more_and_keeps_its_volume(tmp_path):
