@@ -16,6 +16,7 @@ the particles do not explain from 1.26x pysplashsurf's to 1.08x.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -29,6 +30,10 @@ from filters.validation import check_int
 from .contour import polydata_to_mesh
 from .outfiles import frames_folder, remove_series
 from .series import read_collection, read_frame, write_frame
+
+if TYPE_CHECKING:
+    from typing import Any, Callable
+    from .frames import FramesResult
 
 __all__ = ["smooth_series_across_frames", "across_frames_frame", "weights_across"]
 
@@ -106,9 +111,10 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
     write_frame(out, out_file)
 
 
-def smooth_series_across_frames(particles_path, output_path, frames: int, surface_options: dict,
-                                *, single, client=None, resume: bool = False,
-                                progress: bool = True):
+def smooth_series_across_frames(particles_path: str | Path, output_path: str | Path, frames: int,
+                                surface_options: dict, *, single: Callable[..., Any],
+                                client: Any = None, resume: bool = False,
+                                progress: bool = True) -> FramesResult:
     """Write the surfaces of a particle series smoothed across ``2 frames + 1`` frames.
 
     Parameters

@@ -3,6 +3,8 @@ actors (used by :class:`pipeline.renderer.Renderer`; looks from :mod:`pipeline.l
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pyvista as pv
 from vtkmodules.vtkRenderingCore import vtkActor, vtkGlyph3DMapper, vtkPolyDataMapper, vtkTextActor
@@ -11,13 +13,24 @@ from vtkmodules.vtkRenderingOpenGL2 import vtkOpenGLPointGaussianMapper
 from . import looks
 from .colliders import collider_mesh
 
+if TYPE_CHECKING:
+    from typing import Sequence
+    from pyvista import ColorLike
+    from vtkmodules.vtkCommonCore import vtkScalarsToColors
+    from vtkmodules.vtkCommonDataModel import vtkPolyData
+    from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
+    from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
+    from vtkmodules.vtkRenderingCore import vtkRenderer
+    from vtkmodules.vtkRenderingOpenGL2 import vtkCameraPass
+    from .colliders import Collider
+
 __all__ = ["shadow_passes", "polydata_actor", "collider_actors", "smoke_actor", "glyph_actor",
            "label", "scalar_bar", "TEXT_COLOR"]
 
 TEXT_COLOR = "#20262e"
 
 
-def shadow_passes():
+def shadow_passes() -> vtkCameraPass:
     """Render passes of the opaque layer: bake the shadow maps of the key light, then draw the
     opaque geometry once, with shadows (VTK's ``vtkShadowMapBakerPass`` and
     ``vtkShadowMapPass``; PyVista's ``enable_shadows`` would draw it a third time first)."""
@@ -51,7 +64,8 @@ def shadow_passes():
     return camera
 
 
-def polydata_actor(algorithm_or_data, look: str, color, layer) -> vtkActor:
+def polydata_actor(algorithm_or_data: vtkAlgorithm | vtkPolyData, look: str, color: ColorLike,
+                   layer: vtkRenderer) -> vtkActor:
     """An actor of ``algorithm_or_data`` (polydata or an algorithm giving it) in ``look``
     (:data:`pipeline.looks.MATERIALS`) and ``color``, added to the renderer ``layer``."""
     mapper = vtkPolyDataMapper()
@@ -70,7 +84,8 @@ def polydata_actor(algorithm_or_data, look: str, color, layer) -> vtkActor:
     return actor
 
 
-def collider_actors(collider, scene, over, edge_radius: float) -> list:
+def collider_actors(collider: Collider, scene: vtkRenderer, over: vtkRenderer,
+                    edge_radius: float) -> list[vtkActor]:
     """Actors drawing one collider: a solid in the neutral material in the opaque layer
     ``scene`` (it casts and receives shadows), a container as glass faces and dark edge tubes
     of ``edge_radius`` (m) in the top layer ``over``."""
@@ -93,7 +108,7 @@ def collider_actors(collider, scene, over, edge_radius: float) -> list:
     return out
 
 
-def smoke_actor(slot, rgba: str) -> vtkActor:
+def smoke_actor(slot: vtkPolyData, rgba: str) -> vtkActor:
     """Soft sprites of the points of ``slot``: Gaussian splats of radius 4 times the point
     array ``size`` (m), coloured by the RGBA point array ``rgba``
     (:func:`pipeline.looks.smoke_colors`), drawn in the translucent pass."""
@@ -115,7 +130,8 @@ def smoke_actor(slot, rgba: str) -> vtkActor:
     return actor
 
 
-def glyph_actor(slot, radius: float, color, lut, scalars: str) -> vtkActor:
+def glyph_actor(slot: vtkPolyData, radius: float, color: ColorLike,
+                lut: vtkScalarsToColors | None, scalars: str) -> vtkActor:
     """Spheres of ``radius`` (m) at the points of ``slot``, in ``color`` or coloured by the
     point array ``scalars`` through ``lut``.
 
@@ -145,7 +161,7 @@ def glyph_actor(slot, radius: float, color, lut, scalars: str) -> vtkActor:
     return actor
 
 
-def label(inner, side: int, scale: float) -> vtkTextActor:
+def label(inner: tuple[int, int], side: int, scale: float) -> vtkTextActor:
     """The text at the upper left of the image (``inner`` pixels cropped from a square window
     of ``side``, drawn ``scale`` times larger than the image)."""
     text = vtkTextActor()
@@ -157,7 +173,8 @@ def label(inner, side: int, scale: float) -> vtkTextActor:
     return text
 
 
-def scalar_bar(title: str, clim, inner, side: int, scale: float):
+def scalar_bar(title: str, clim: Sequence[float], inner: tuple[int, int], side: int,
+               scale: float) -> vtkScalarBarActor:
     """A vertical viridis colour bar of ``clim`` at the image's right edge."""
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
 

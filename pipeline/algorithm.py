@@ -20,9 +20,15 @@ from __future__ import annotations
 
 import re
 from contextlib import contextmanager
+from typing import TYPE_CHECKING
 
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
+
+if TYPE_CHECKING:
+    from typing import Any, Iterable, Iterator, Sequence
+    from vtkmodules.vtkCommonDataModel import vtkDataObject
+    from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
 __all__ = ["Algorithm", "ParticleStage", "raise_pending", "vtk_messages", "VTKMessages",
            "connect_chain", "update", "run_chain"]
@@ -31,7 +37,7 @@ __all__ = ["Algorithm", "ParticleStage", "raise_pending", "vtk_messages", "VTKMe
 class Algorithm(VTKPythonAlgorithmBase):
     """A ``VTKPythonAlgorithmBase`` that remembers the exception of a failed request."""
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args: Any, **kwargs: Any):
         VTKPythonAlgorithmBase.__init__(self, *args, **kwargs)
         self.pending_error: BaseException | None = None
 
@@ -72,7 +78,7 @@ class ParticleStage(Algorithm):
         return 1
 
 
-def raise_pending(algorithms) -> None:
+def raise_pending(algorithms: Iterable[vtkAlgorithm]) -> None:
     """Re-raise (and clear) the first exception kept by any of ``algorithms``."""
     for algorithm in algorithms:
         error = getattr(algorithm, "pending_error", None)
@@ -96,7 +102,7 @@ class VTKMessages:
 
 
 @contextmanager
-def vtk_messages():
+def vtk_messages() -> Iterator[VTKMessages]:
     """Collect VTK's error and warning text instead of printing it.
 
     Yields a :class:`VTKMessages`; its ``text`` and ``errors`` are filled when the block ends
@@ -117,7 +123,8 @@ def vtk_messages():
         vtkLogger.SetStderrVerbosity(verbosity)
 
 
-def connect_chain(algorithms, upstream=None, data=None) -> None:
+def connect_chain(algorithms: Sequence[vtkAlgorithm], upstream: vtkAlgorithm | None = None,
+                  data: vtkDataObject | None = None) -> None:
     """Connect a chain: each algorithm's input port 0 to the previous one's output port 0.
 
     The first algorithm's port 0, and port 1 of every :class:`ParticleStage` of the chain, get
@@ -150,7 +157,8 @@ def connect_chain(algorithms, upstream=None, data=None) -> None:
         previous = algorithm
 
 
-def update(algorithm, chain, time: float | None = None, what: str = "the VTK pipeline"):
+def update(algorithm: vtkAlgorithm, chain: Iterable[vtkAlgorithm], time: float | None = None,
+           what: str = "the VTK pipeline") -> vtkDataObject:
     """Update ``algorithm`` (at ``time`` when given) and return a shallow copy of its output.
 
     The first exception kept by any algorithm of ``chain`` (:func:`raise_pending`) is re-raised;
@@ -170,7 +178,8 @@ def update(algorithm, chain, time: float | None = None, what: str = "the VTK pip
     return copy
 
 
-def run_chain(algorithms, data, time: float | None = None, what: str = "the VTK pipeline"):
+def run_chain(algorithms: Iterable[vtkAlgorithm], data: vtkDataObject, time: float | None = None,
+              what: str = "the VTK pipeline") -> vtkDataObject:
     """Feed ``data`` to a chain (:func:`connect_chain`), update its last algorithm
     (:func:`update`) and return a copy of the result."""
     algorithms = list(algorithms)

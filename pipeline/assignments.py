@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from typing import Any, Iterable
 
 __all__ = ["Parameter", "parse_assignments", "TRUE_WORDS", "FALSE_WORDS", "KINDS"]
 
@@ -44,7 +48,7 @@ class Parameter:
         elif self.kind not in KINDS:
             raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
 
-    def parse(self, text: str):
+    def parse(self, text: str) -> Any:
         """Convert the string ``text`` to this parameter's type.
 
         Raises
@@ -87,7 +91,8 @@ class Parameter:
         return text
 
 
-def parse_assignments(items, parameters: dict, *, flag: str = "--set", owner: str = "") -> dict:
+def parse_assignments(items: Iterable[str] | None, parameters: dict[str, Parameter], *,
+                      flag: str = "--set", owner: str = "") -> dict[str, Any]:
     """Turn ``["name=value", ...]`` into ``{name: typed value}``.
 
     Parameters

@@ -7,23 +7,27 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from . import cli_tools
 from .cli_common import (UsageError, add_cluster_options, check_name_length, check_workers,
                          check_writable, client as make_client, close_client, report_memory)
 
+if TYPE_CHECKING:
+    import argparse
+
 __all__ = ["add_surface_parser", "surface_command"]
 
 
-def add_surface_parser(sub) -> None:
+def add_surface_parser(sub: argparse._SubParsersAction) -> None:
     """The ``surface`` command's parser."""
     p_surface = sub.add_parser("surface", help="reconstruct the surface of every frame of a "
                                "particle series (serially or on a Dask cluster)")
     p_surface.add_argument("particles", help="particle series (.pvd or .series)")
     p_surface.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p_surface.add_argument("--name", default="surface",
-                           help="series name (default surface); the renders draw a series whose "
-                                "name starts with 'surface' as water")
+                           help="series name (default surface); a liquid's surface is drawn as "
+                                "water whatever its name (it says so in its field data)")
     p_surface.add_argument("--radius", type=float, metavar="R",
                            help="particle radius (m); default half the spacing of the run that "
                                 "wrote the particles (its scene.json), else 0.01")
@@ -69,7 +73,7 @@ def _surface_options(args, source: Path) -> dict:
     return options
 
 
-def surface_command(args) -> int:
+def surface_command(args: argparse.Namespace) -> int:
     """``blobflow surface``: the surface of every frame of a particle series."""
     from .folderlock import FolderLockedError, lock_folder
     from .frames import FramesError, surface_series

@@ -12,12 +12,17 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-__all__ = ["add_gallery_parser", "gallery_command", "add_export_parser", "export_command", "add_paraview_parser", "paraview_command",
-           "scene_defaults_epilog", "surface_help", "announce_compilation"]
+if TYPE_CHECKING:
+    from typing import Callable, Mapping
+
+__all__ = ["add_gallery_parser", "gallery_command", "add_export_parser", "export_command",
+           "add_paraview_parser", "paraview_command", "display_problem", "scene_defaults_epilog",
+           "surface_help", "announce_compilation"]
 
 
-def scene_defaults_epilog(parser) -> None:
+def scene_defaults_epilog(parser: argparse.ArgumentParser) -> None:
     """``run --help``: every installed scene's default duration and fps."""
     from .scene import available_scenes, load_scene
 
@@ -34,7 +39,7 @@ def scene_defaults_epilog(parser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
 
 
-def surface_help(parser) -> None:
+def surface_help(parser: argparse.ArgumentParser) -> None:
     """``surface --help``: the kernels and the defaults of the surface options."""
     from filters.kernels import SPLAT_KERNELS
 
@@ -52,7 +57,7 @@ def surface_help(parser) -> None:
 
 
 # -- gallery ------------------------------------------------------------------------------------
-def add_gallery_parser(sub) -> None:
+def add_gallery_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("gallery", help="run every scene with its defaults and draw one still of "
                        "each (the README's pictures)",
                        description="Draw one still per scene (at the scene's still time, else "
@@ -67,7 +72,8 @@ def add_gallery_parser(sub) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
-def gallery_command(args, *, run, check_writable) -> int:
+def gallery_command(args: argparse.Namespace, *, run: Callable[[list[str]], int],
+                    check_writable: Callable[[Path], None]) -> int:
     """``blobflow gallery``: ``run(argv)`` runs a scene (``blobflow run``), ``check_writable``
     refuses a folder that cannot be written."""
     from .gallery import gallery_still, run_is_current
@@ -106,7 +112,7 @@ def gallery_command(args, *, run, check_writable) -> int:
 
 
 # -- export -------------------------------------------------------------------------------------
-def add_export_parser(sub) -> None:
+def add_export_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("export", help="write series as one USD stage (Blender, Houdini, ...)",
                        description="Write one or more series (.pvd or .series) as one USD stage: "
                        "particles as Points (widths, velocities, ids), surfaces as Meshes whose "
@@ -124,7 +130,7 @@ def add_export_parser(sub) -> None:
                         "radius array (default: half the run's spacing, else 0.005)")
 
 
-def export_command(args) -> int:
+def export_command(args: argparse.Namespace) -> int:
     """``blobflow export``: ValueError (one line, exit code 2) for bad input, before writing."""
     from .series import SeriesError, validate_series
     from .usd import UsdUnavailableError, export_usd
@@ -149,18 +155,58 @@ def export_command(args) -> int:
 
 
 # -- paraview -----------------------------------------------------------------------------------
-def add_paraview_parser(sub) -> None:
+def add_paraview_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("paraview", help="where blobflow's ParaView plugin is, or start ParaView "
                        "with it", description="Print the paths of blobflow's ParaView plugin "
                        "(filter 'blobflow Particle Surface', one source per scene) and how to "
-                       "load it; --launch starts the ParaView GUI with it loaded.")
+                       "load it; --launch starts the ParaView GUI with it loaded, then opens "
+                       "FILES (it needs a display: headless, run it under xvfb-run).")
     p.add_argument("--launch", action="store_true",
                    help="start `paraview` with the plugin loaded (and open FILES)")
     p.add_argument("files", nargs="*", metavar="FILE", help="files to open with --launch")
 
 
-def paraview_command(args) -> int:
-    """``blobflow paraview``: print the plugin's paths, or start ParaView with it."""
+def display_problem(environ: Mapping[str, str] | None = None) -> str | None:
+    """Why ParaView's window could not open here (one line), or None when it can (or when
+    this cannot be told: not Linux, a Qt platform of its own, no Xlib to ask).
+
+    With ``DISPLAY`` set, Xlib is asked to connect to it (``XOpenDisplay``), as Qt would.
+    """
+    environ = os.environ if environ is None else environ
+    if not sys.platform.startswith("linux") or environ.get("QT_QPA_PLATFORM"):
+        return None
+    if environ.get("WAYLAND_DISPLAY"):
+        return None
+    hint = ("ParaView's window needs a display: run it on a desktop, or headless under Xvfb: "
+            "`xvfb-run -a blobflow paraview --launch ...` (Debian: apt-get install xvfb)")
+    display = environ.get("DISPLAY")
+    if not display:
+        return f"no display (DISPLAY is not set); {hint}"
+    import ctypes
+    import ctypes.util
+
+    try:
+        xlib = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
+    except OSError:
+        return None
+    xlib.XOpenDisplay.restype = ctypes.c_void_p
+    xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = xlib.XOpenDisplay(display.encode())
+    if not handle:
+        return f"cannot connect to the display {display!r}; {hint}"
+    xlib.XCloseDisplay(handle)
+    return None
+
+
+def paraview_command(args: argparse.Namespace) -> int:
+    """``blobflow paraview``: print the plugin's paths, or start ParaView with it.
+
+    ParaView 5.11 refuses data files beside ``--script`` ("--script excludes filenames"): the
+    files go to the startup script in ``BLOBFLOW_PARAVIEW_OPEN``, which opens them once the
+    plugin is loaded.
+    """
+    import json
     import shutil
     import subprocess
 
@@ -179,8 +225,17 @@ def paraview_command(args) -> int:
     paraview = shutil.which("paraview")
     if paraview is None:
         raise ValueError("paraview is not on PATH (Debian: apt-get install paraview)")
-    env = dict(os.environ, BLOBFLOW_PYTHON=sys.executable)
-    return subprocess.call([paraview, f"--script={startup}", *args.files], env=env)
+    files = [Path(f).resolve() for f in args.files]
+    missing = [str(f) for f, given in zip(files, args.files) if not f.exists()]
+    if missing:
+        raise ValueError(f"FILE: no such file: {missing[0]}")
+    problem = display_problem()
+    if problem:
+        raise ValueError(problem)
+    env = dict(os.environ, BLOBFLOW_PYTHON=os.environ.get("BLOBFLOW_PYTHON", sys.executable),
+               BLOBFLOW_PARAVIEW_PLUGIN=str(plugin),
+               BLOBFLOW_PARAVIEW_OPEN=json.dumps([str(f) for f in files]))
+    return subprocess.call([paraview, f"--script={startup}"], env=env)
 
 
 _NOTICE = None

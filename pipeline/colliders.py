@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -45,6 +46,9 @@ from filters.geometry import Box, Complement, Plane, Shape, Sphere
 from filters.validation import check_finite, check_int
 
 from .series import SeriesError, read_frame, write_frame
+
+if TYPE_CHECKING:
+    from typing import Sequence
 
 __all__ = ["Collider", "ROLES", "COLLIDERS_FILE", "colliders_dataset", "write_colliders",
            "read_colliders", "collider_mesh"]
@@ -196,7 +200,7 @@ def _contour(shape, resolution):
     return points, triangles
 
 
-def collider_mesh(collider: Collider, resolution: int = 24):
+def collider_mesh(collider: Collider, resolution: int = 24) -> tuple[np.ndarray, np.ndarray]:
     """Points ``(P, 3)`` (m) and cells ``(C, 3 or 4)`` (indices) drawing ``collider``.
 
     Spheres are UV spheres with every vertex at the radius (``resolution`` rings), boxes and
@@ -232,7 +236,7 @@ def _check_colliders(colliders) -> list:
     return colliders
 
 
-def colliders_dataset(colliders, resolution: int = 24) -> vtkPolyData:
+def colliders_dataset(colliders: Sequence[Collider], resolution: int = 24) -> vtkPolyData:
     """One vtkPolyData of every collider: cells, ``collider`` and ``role`` cell arrays and the
     exact parameters in field data (see the module's docstring)."""
     colliders = _check_colliders(colliders)
@@ -281,7 +285,7 @@ def colliders_dataset(colliders, resolution: int = 24) -> vtkPolyData:
     return poly
 
 
-def write_colliders(colliders, path) -> Path:
+def write_colliders(colliders: Sequence[Collider], path: str | Path) -> Path:
     """Write ``colliders`` to ``path`` (``colliders.vtp``), atomically, as
     :func:`colliders_dataset` makes them."""
     return write_frame(colliders_dataset(colliders), path)
@@ -294,7 +298,7 @@ def _strings(field, name, path) -> list[str]:
     return [array.GetValue(i) for i in range(array.GetNumberOfValues())]
 
 
-def read_colliders(path) -> list[Collider]:
+def read_colliders(path: str | Path) -> list[Collider]:
     """Read back the colliders of a ``colliders.vtp`` (exact shapes, from its field data).
 
     Combinations of shapes (kind ``shape``) come back as the box of their bounds, the only

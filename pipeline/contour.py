@@ -13,6 +13,8 @@ split, the same in every cube, so its bricks stitch the same way. The
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkPoints, vtkTypeInt32Array, vtkTypeInt64Array
@@ -23,6 +25,9 @@ from filters.surface.grid import DEFAULT_MAX_BYTES, DenseField, SparseGrid, chec
 from filters.surface.mesh import piece_flags, stitch
 from filters.surface.tetra import contour_array, contour_grid
 from filters.validation import check_choice, check_int
+
+if TYPE_CHECKING:
+    from typing import Iterator, Mapping
 
 __all__ = [
     "FIELD_NAME",
@@ -46,7 +51,7 @@ FIELD_NAME = "implicit"
 CONTOUR_METHODS = ("flying_edges", "tetrahedra")
 
 
-def flying_edges():
+def flying_edges() -> vtkFlyingEdges3D:
     """A vtkFlyingEdges3D at value 0 computing nothing but the contour."""
     fe = vtkFlyingEdges3D()
     fe.SetValue(0, 0.0)
@@ -57,7 +62,8 @@ def flying_edges():
     return fe
 
 
-def image_of(values, index_origin, deep=False):
+def image_of(values: np.ndarray, index_origin: np.ndarray,
+             deep: bool = False) -> tuple[vtkImageData, np.ndarray]:
     """vtkImageData (index units) over ``values`` (nz, ny, nx); shared unless ``deep``."""
     nz, ny, nx = values.shape
     image = vtkImageData()
@@ -81,7 +87,7 @@ class Pieces:
         self.points, self.tris, self.lo, self.hi, self.starts = [], [], [], [], [0]
         self.count = 0
 
-    def add(self, fe, lo, hi):
+    def add(self, fe: vtkFlyingEdges3D, lo: np.ndarray, hi: np.ndarray) -> None:
         out = fe.GetOutput()
         n = out.GetNumberOfPoints()
         if n == 0 or out.GetNumberOfPolys() == 0:
@@ -98,7 +104,7 @@ class Pieces:
         self.count += n
         self.starts.append(self.count)
 
-    def mesh(self, cell_size):
+    def mesh(self, cell_size: float) -> tuple[np.ndarray, np.ndarray]:
         if not self.points:
             return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
         pts = np.concatenate(self.points)
@@ -116,7 +122,8 @@ class Pieces:
         return pts, tris
 
 
-def contour_dense(field: DenseField, method: str = "flying_edges"):
+def contour_dense(field: DenseField,
+                  method: str = "flying_edges") -> tuple[np.ndarray, np.ndarray]:
     """Zero level set of a dense field with vtkFlyingEdges3D or marching tetrahedra.
 
     Parameters
@@ -155,8 +162,9 @@ def brick_chunk(span: int, max_bytes: int, chunk: int = 16) -> int:
     return int(max(1, min(chunk, (max_bytes // 4) // brick)))
 
 
-def check_grid_sizes(radius: float, cell_size: float, kernel: str, support_r, block_size: int,
-                     brick_blocks: int, max_bytes: int, fixed_radius: bool = True) -> None:
+def check_grid_sizes(radius: float, cell_size: float, kernel: str, support_r: float | None,
+                     block_size: int, brick_blocks: int, max_bytes: int,
+                     fixed_radius: bool = True) -> None:
     """Refuse, before any work, grid settings that cannot fit ``max_bytes`` or reach.
 
     A brick of ``block_size * brick_blocks + 1`` voxels a side is filled and contoured whole:
@@ -188,7 +196,7 @@ def check_grid_sizes(radius: float, cell_size: float, kernel: str, support_r, bl
 
 
 def brick_images(grid: SparseGrid, group: int, chunk: int = 16,
-                 max_bytes: int = DEFAULT_MAX_BYTES):
+                 max_bytes: int = DEFAULT_MAX_BYTES) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Yield (index_origin, values) of each brick that holds a sign change.
 
     The values live in a buffer reused for every chunk of bricks: use them before the next.
@@ -207,7 +215,8 @@ def brick_images(grid: SparseGrid, group: int, chunk: int = 16,
             yield part[b] * span, vals[b]
 
 
-def contour_sparse(grid: SparseGrid, group: int = 4, method: str = "flying_edges"):
+def contour_sparse(grid: SparseGrid, group: int = 4,
+                   method: str = "flying_edges") -> tuple[np.ndarray, np.ndarray]:
     """Zero level set of a sparse grid: contoured per brick, stitched into one mesh.
 
     Bricks of ``group ** 3`` blocks overlap their neighbours by one voxel layer; each is
@@ -252,7 +261,8 @@ def contour_sparse(grid: SparseGrid, group: int = 4, method: str = "flying_edges
     return pieces.mesh(grid.cell_size)
 
 
-def mesh_to_polydata(points, triangles, point_data=None) -> vtkPolyData:
+def mesh_to_polydata(points: np.ndarray, triangles: np.ndarray,
+                     point_data: Mapping[str, np.ndarray] | None = None) -> vtkPolyData:
     """Arrays -> vtkPolyData with triangle cells (always valid, also when empty).
 
     Parameters
@@ -288,7 +298,7 @@ def mesh_to_polydata(points, triangles, point_data=None) -> vtkPolyData:
     return poly
 
 
-def polydata_to_mesh(poly: vtkPolyData):
+def polydata_to_mesh(poly: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     """vtkPolyData of triangles -> ``(points (P, 3) float64, triangles (T, 3) int64)``."""
     if poly.GetNumberOfPoints() == 0:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -24,6 +25,9 @@ from filters.simulation import Frame, OutputSpec
 from .algorithm import Algorithm, vtk_messages
 from .convert import dataset_time, frame_to_vtk
 from .xmlcheck import XML_SUFFIXES, UnsafeFileError, check_vtk_xml
+
+if TYPE_CHECKING:
+    from typing import Sequence
 
 __all__ = ["EmbeddedSurface", "read_closed_mesh"]
 
@@ -40,7 +44,7 @@ class EmbeddedSurface(Algorithm):
         skipped); the surface also gets an ``id`` per vertex.
     """
 
-    def __init__(self, embedding: Embedding, point_arrays=("velocity",)):
+    def __init__(self, embedding: Embedding, point_arrays: Sequence[str] = ("velocity",)):
         if not isinstance(embedding, Embedding):
             raise TypeError(f"embedding must be a filters.elastic.topology.Embedding, got "
                             f"{type(embedding).__name__}")
@@ -85,7 +89,7 @@ class EmbeddedSurface(Algorithm):
 _MULTI_FILE = (".vtm", ".vtmb", ".pvd", ".pvtp", ".pvtu", ".pvti", ".pvts", ".pvtr", ".series")
 
 
-def read_closed_mesh(path, name: str = "mesh"):
+def read_closed_mesh(path: str | Path, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     """Read a closed triangle surface from any file PyVista reads.
 
     Parameters

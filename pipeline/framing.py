@@ -11,8 +11,14 @@ velocities), else the last frame.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from typing import Sequence
+    from numpy.typing import ArrayLike
+    from vtkmodules.vtkCommonDataModel import vtkDataObject
 
 __all__ = ["robust_bounds", "join_bounds", "surface_area", "kinetic_energy",
            "interesting_index", "frame_measures", "clipping_range", "ROBUST_PERCENT",
@@ -26,7 +32,7 @@ ROBUST_PERCENT = 1.0
 STRAY_FACTOR = 20.0
 
 
-def robust_bounds(points, percent: float = ROBUST_PERCENT) -> np.ndarray | None:
+def robust_bounds(points: ArrayLike, percent: float = ROBUST_PERCENT) -> np.ndarray | None:
     """``(xmin, xmax, ymin, ymax, zmin, zmax)`` of the points between the ``percent`` and
     ``100 - percent`` percentiles on each axis, or None for no (finite) points; non-finite
     points, and points farther from the median point than :data:`STRAY_FACTOR` times the
@@ -66,7 +72,7 @@ def robust_bounds(points, percent: float = ROBUST_PERCENT) -> np.ndarray | None:
 CLIP_REACH = 4.0
 
 
-def clipping_range(fitted, distance: float, radius: float) -> tuple[float, float]:
+def clipping_range(fitted: tuple[float, float], distance: float, radius: float) -> tuple[float, float]:
     """The camera's near and far clipping distances (m).
 
     ``fitted`` is VTK's range fitted to every actor. A particle flying far away (or a NaN
@@ -92,7 +98,7 @@ def clipping_range(fitted, distance: float, radius: float) -> tuple[float, float
     return max(distance - reach, 1e-3 * far), far
 
 
-def join_bounds(*bounds) -> np.ndarray | None:
+def join_bounds(*bounds: ArrayLike | None) -> np.ndarray | None:
     """The box holding every given ``(xmin, xmax, ...)`` box (None entries are skipped)."""
     boxes = [np.asarray(b, dtype=np.float64).reshape(6) for b in bounds if b is not None]
     if not boxes:
@@ -104,7 +110,7 @@ def join_bounds(*bounds) -> np.ndarray | None:
     return out
 
 
-def surface_area(points, triangles) -> float:
+def surface_area(points: ArrayLike, triangles: ArrayLike) -> float:
     """Total area (m^2) of triangles ``(T, 3)`` (indices) over ``points`` ``(P, 3)`` (m)."""
     points = np.asarray(points, dtype=np.float64)
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
@@ -114,14 +120,15 @@ def surface_area(points, triangles) -> float:
     return 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
 
 
-def kinetic_energy(velocities) -> float:
+def kinetic_energy(velocities: ArrayLike) -> float:
     """Sum of squared speeds (m^2/s^2) of ``(N, 3)`` velocities: twice the kinetic energy of
     unit masses."""
     v = np.asarray(velocities, dtype=np.float64).reshape(-1, 3)
     return float(np.einsum("ij,ij->", v, v))
 
 
-def interesting_index(areas, energies) -> tuple[int, str]:
+def interesting_index(areas: Sequence[float] | None,
+                      energies: Sequence[float] | None) -> tuple[int, str]:
     """Index of the most interesting frame and why: the largest liquid surface area when the
     series has one, else the largest kinetic energy, else the last frame.
 
@@ -146,13 +153,16 @@ def interesting_index(areas, energies) -> tuple[int, str]:
     return max(n - 1, 0), "last frame"
 
 
-def frame_measures(name: str, data) -> tuple[float | None, float | None]:
+def frame_measures(name: str, data: vtkDataObject) -> tuple[float | None, float | None]:
     """``(liquid surface area (m^2) or None, sum of squared point speeds or None)`` of one
-    frame of the series ``name``: the area for polygonal series named ``surface*``, the energy
-    where the frame has a ``velocity`` point array."""
+    frame of the series ``name``: the area for a liquid's surface
+    (:func:`pipeline.looks.is_liquid_surface`: tagged so, or an untagged polygonal frame of a
+    series named ``surface*``), the energy where the frame has a ``velocity`` point array."""
+    from .looks import is_liquid_surface
+
     area = energy = None
     polys = data.GetPolys() if hasattr(data, "GetPolys") else None
-    if name.startswith("surface") and polys is not None:
+    if polys is not None and is_liquid_surface(name, data):
         if polys.GetNumberOfCells():
             from .contour import polydata_to_mesh
 

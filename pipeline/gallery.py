@@ -13,10 +13,15 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from filters.simulation import frame_times
 
 from .series import SeriesError, read_collection
+
+if TYPE_CHECKING:
+    from typing import Sequence
+    from .scene import Scene
 
 __all__ = ["run_is_current", "run_series", "gallery_still", "code_mtime", "GALLERY_SIZE",
            "DRAWING_MODULES"]
@@ -30,7 +35,7 @@ DRAWING_MODULES = ("actors", "cli", "cli_tools", "framing", "gallery", "looks", 
                    "render", "renderer", "__main__", "version")
 
 
-def code_mtime(scene) -> float:
+def code_mtime(scene: Scene) -> float:
     """Newest modification time (s since the epoch) of the Python sources that compute a run of
     ``scene``: the ``filters`` package, the scene's own package and ``pipeline`` but for
     :data:`DRAWING_MODULES`."""
@@ -50,7 +55,7 @@ def _normal(value):
     return json.loads(json.dumps(value, default=list))
 
 
-def run_is_current(directory, scene) -> bool:
+def run_is_current(directory: str | Path, scene: Scene) -> bool:
     """Whether ``directory`` holds a complete, current run of ``scene`` with its defaults.
 
     True when its ``scene.json`` names the scene with exactly its default parameters and frame
@@ -88,7 +93,7 @@ def run_is_current(directory, scene) -> bool:
     return True
 
 
-def run_series(directory, outputs=None) -> list[Path]:
+def run_series(directory: str | Path, outputs: Sequence[str] | None = None) -> list[Path]:
     """The series of a run folder, in the order its ``scene.json`` lists its outputs; only those
     named in ``outputs`` (e.g. :meth:`pipeline.compose.Flow.drawn_outputs`) when given."""
     directory = Path(directory)
@@ -97,8 +102,9 @@ def run_series(directory, outputs=None) -> list[Path]:
     return [directory / f"{name}.pvd" for name in names]
 
 
-def gallery_still(directory, out, *, size=GALLERY_SIZE, time: float | None = None,
-                  outputs=None) -> tuple[Path, int, str]:
+def gallery_still(directory: str | Path, out: str | Path, *,
+                  size: tuple[int, int] = GALLERY_SIZE, time: float | None = None,
+                  outputs: Sequence[str] | None = None) -> tuple[Path, int, str]:
     """Draw the gallery's still of the run in ``directory`` to ``out`` (PNG): the frame nearest
     ``time`` (s; a scene's :attr:`~pipeline.scene.Scene.still`), else the most interesting one.
 

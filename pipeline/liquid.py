@@ -1,6 +1,8 @@
 """Stages of a liquid's surface in its tank: the surface cut exactly at the tank's walls
 (:class:`ClipBox`) and every piece of it enclosing the volume of its particles
-(:class:`VolumeCorrection`, :func:`filters.surface.correction.correct_volume`)."""
+(:class:`VolumeCorrection`, :func:`filters.surface.correction.correct_volume`); and what a
+surface is, written into it (:class:`SurfaceKind`, read back by :func:`dataset_kind`): a
+liquid's surface is drawn as water whatever its series is called."""
 
 from __future__ import annotations
 
@@ -8,8 +10,9 @@ import math
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkPoints
-from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPointSet, vtkPolyData
+from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
+from vtkmodules.vtkCommonDataModel import (vtkCellArray, vtkDataObject, vtkFieldData, vtkPointSet,
+                                           vtkPolyData)
 from vtkmodules.vtkFiltersGeneral import vtkContourTriangulator
 
 from filters.geometry import Box, Shape
@@ -20,7 +23,16 @@ from filters.validation import check_range
 from .algorithm import Algorithm, ParticleStage
 from .contour import mesh_to_polydata
 
-__all__ = ["ClipBox", "VolumeCorrection"]
+__all__ = ["ClipBox", "VolumeCorrection", "SurfaceKind", "dataset_kind", "KIND_ARRAY",
+           "LIQUID_SURFACE", "PARTICLE_SURFACE"]
+
+#: Field-data array (a string array of one value) that says what a dataset is.
+KIND_ARRAY = "blobflow_kind"
+#: The surface of a liquid's particles (``liquid=True``): drawn as water.
+LIQUID_SURFACE = "liquid_surface"
+#: The surface of any other particles (a point cloud, smoke): drawn as a solid.
+PARTICLE_SURFACE = "particle_surface"
+_KINDS = (LIQUID_SURFACE, PARTICLE_SURFACE)
 
 
 class ClipBox(Algorithm):
@@ -229,3 +241,48 @@ class VolumeCorrection(ParticleStage):
             np.ascontiguousarray(moved.astype(pts.dtype)), deep=True))
         out.SetPoints(points)
         return 1
+
+
+class SurfaceKind(Algorithm):
+    """Write what a surface is into its field data: ``blobflow_kind`` = ``kind``.
+
+    The last stage of :func:`pipeline.surface.surface_stages`; the series, ParaView and the
+    renderer (:mod:`pipeline.renderer`) read it back (:func:`dataset_kind`). Everything else
+    passes unchanged (shallow copies).
+
+    Parameters
+    ----------
+    kind : {"liquid_surface", "particle_surface"}
+        :data:`LIQUID_SURFACE` or :data:`PARTICLE_SURFACE`.
+    """
+
+    def __init__(self, kind: str):
+        if kind not in _KINDS:
+            raise ValueError(f"kind must be one of {', '.join(map(repr, _KINDS))}, got {kind!r}")
+        self.kind = kind
+        Algorithm.__init__(self, nInputPorts=1, inputType="vtkPolyData", nOutputPorts=1,
+                           outputType="vtkPolyData")
+
+    def RequestData(self, request, inInfo, outInfo):
+        inp = vtkPolyData.GetData(inInfo[0], 0)
+        out = vtkPolyData.GetData(outInfo, 0)
+        out.ShallowCopy(inp)
+        field = vtkFieldData()  # a new one: the input's stays as it was
+        field.ShallowCopy(inp.GetFieldData())
+        tag = vtkStringArray()
+        tag.SetName(KIND_ARRAY)
+        tag.InsertNextValue(self.kind)
+        field.AddArray(tag)
+        out.SetFieldData(field)
+        return 1
+
+
+def dataset_kind(data: vtkDataObject) -> str | None:
+    """What a dataset says it is (its ``blobflow_kind`` field array, see :class:`SurfaceKind`),
+    or None where it says nothing (any dataset not made by blobflow's surface stages, and the
+    surfaces written before the tag existed)."""
+    field = data.GetFieldData() if data is not None else None
+    array = field.GetAbstractArray(KIND_ARRAY) if field is not None else None
+    if array is None or array.GetNumberOfValues() == 0:
+        return None
+    return str(array.GetValue(0)) if isinstance(array, vtkStringArray) else None

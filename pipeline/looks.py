@@ -14,13 +14,19 @@ the particle, times a fade with the particle's age; all sprites share one hue, s
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+    from vtkmodules.vtkCommonDataModel import vtkDataObject
+    from vtkmodules.vtkRenderingCore import vtkProperty
 
 __all__ = ["WATER", "SOLID", "HAIR", "POINTS", "SMOKE", "COLLIDER", "GLASS", "EDGE", "FLOOR",
            "BACKGROUND", "MATERIALS", "apply_material", "grid_texture_image", "smoke_colors",
            "SMOKE_SPLAT_SHADER", "key_light", "KEY_AZIMUTH", "KEY_ELEVATION",
-           "SHADOW_MAP_RESOLUTION", "SHADOW_EXPONENT"]
+           "SHADOW_MAP_RESOLUTION", "SHADOW_EXPONENT", "is_liquid_surface", "is_particle_surface"]
 
 WATER = "#2f86d6"
 SOLID = "#d9774f"
@@ -63,7 +69,39 @@ MATERIALS = {
 }
 
 
-def apply_material(prop, look: str) -> None:
+def is_liquid_surface(name: str, data: vtkDataObject) -> bool:
+    """Whether a frame is a liquid's surface, drawn as water (and measured by its area).
+
+    What the frame says it is decides: ``blobflow_kind`` = ``liquid_surface`` in its field data
+    (written by the surface stages, :class:`pipeline.liquid.SurfaceKind`), whatever its series
+    is called. A frame without the tag (series written before it existed) is one when it is
+    polygonal data and its series' name starts with ``surface``.
+
+    Parameters
+    ----------
+    name : str
+        The series' name (``surface`` for ``surface.pvd``).
+    data : vtkDataObject
+        One frame.
+    """
+    from .liquid import LIQUID_SURFACE, dataset_kind
+
+    kind = dataset_kind(data)
+    if kind is not None:
+        return kind == LIQUID_SURFACE
+    return hasattr(data, "GetPolys") and name.startswith("surface")
+
+
+def is_particle_surface(name: str, data: vtkDataObject) -> bool:
+    """Whether a frame is a surface contoured around particles (a liquid's or any other, e.g.
+    smoke's metaballs): tagged by the surface stages, or, untagged, a liquid's surface by its
+    name (:func:`is_liquid_surface`)."""
+    from .liquid import dataset_kind
+
+    return dataset_kind(data) is not None or is_liquid_surface(name, data)
+
+
+def apply_material(prop: vtkProperty, look: str) -> None:
     """Set a ``vtkProperty``'s lighting coefficients to those of ``look`` (:data:`MATERIALS`)."""
     m = MATERIALS[look]
     prop.SetAmbient(m["ambient"])
@@ -94,7 +132,8 @@ SMOKE_SPLAT_SHADER = (
 
 
 def smoke_colors(points: np.ndarray, age: np.ndarray | None, age_scale: float, *,
-                 opacity: float = 0.18, zrange=(0.0, 1.0)) -> np.ndarray:
+                 opacity: float = 0.18,
+                 zrange: tuple[float, float] = (0.0, 1.0)) -> np.ndarray:
     """RGBA (uint8) of smoke sprites: one hue, lighter with height, alpha fading with age.
 
     Parameters
@@ -132,7 +171,8 @@ def smoke_colors(points: np.ndarray, age: np.ndarray | None, age_scale: float, *
     return rgba
 
 
-def key_light(center, radius: float, azimuth: float, floor_z: float, floor_half: float):
+def key_light(center: ArrayLike, radius: float, azimuth: float, floor_z: float,
+              floor_half: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Where the shadow-casting key light stands for a camera at ``azimuth`` degrees.
 
     The light follows the camera (a turntable's object turns under fixed studio lights, so it is

@@ -56,7 +56,9 @@ _SDDP = vtkStreamingDemandDrivenPipeline
 KERNELS = ("sph", "blobby", "metaball", "zhu_bridson")
 SURFACE = {"radius": 0.01, "kernel": "sph", "anisotropic": True, "feature_smoothing": 25,
            "smooth_iterations": 30, "pass_band": 0.01, "normals": True,
-           "attributes": ("velocity",), "volume_correction": True}
+           "attributes": ("velocity",), "liquid": False, "volume_correction": None}
+#: The panel's choices for the volume correction (None: as Liquid).
+VOLUME_CORRECTION = ((None, "as Liquid"), (True, "on"), (False, "off"))
 #: Environment variables that would make blobflow's Python load ParaView's modules or libraries.
 _FOREIGN = ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "LD_LIBRARY_PATH", "LD_PRELOAD",
             "VTK_DEFAULT_OPENGL_WINDOW")
@@ -283,13 +285,25 @@ class ParticleSurface(VTKPythonAlgorithmBase):
     def SetPassBand(self, value):
         self._set("pass_band", float(value))
 
-    @smproperty.intvector(name="VolumeCorrection", label="Volume Correction",
-                          default_values=int(SURFACE["volume_correction"]))
+    @smproperty.intvector(name="Liquid", default_values=int(SURFACE["liquid"]))
     @smdomain.xml('<BooleanDomain name="bool"/>')
+    @_documentation("The particles are a liquid's, at a spacing of 2 radius (an SPH "
+                    "simulation's): volume correction, and the surface is tagged as a liquid's "
+                    "(blobflow_kind, drawn as water).")
+    def SetLiquid(self, value):
+        self._set("liquid", bool(int(value)))
+
+    @smproperty.intvector(name="VolumeCorrection", label="Volume Correction",
+                          default_values=[v for v, _ in VOLUME_CORRECTION].index(
+                              SURFACE["volume_correction"]))
+    @smdomain.xml('<EnumerationDomain name="enum">' + "".join(
+        f'<Entry value="{i}" text="{t}"/>' for i, (_, t) in enumerate(VOLUME_CORRECTION))
+        + "</EnumerationDomain>")
     @_documentation("Offset every closed piece of the surface along its normals until it "
-                    "encloses its particles' volume, (2 radius)^3 each (a liquid's particles).")
+                    "encloses its particles' volume, (2 radius)^3 each (a liquid's particles); "
+                    "by default where Liquid is on.")
     def SetVolumeCorrection(self, value):
-        self._set("volume_correction", bool(int(value)))
+        self._set("volume_correction", VOLUME_CORRECTION[int(value)][0])
 
     @smproperty.intvector(name="Normals", default_values=int(SURFACE["normals"]))
     @smdomain.xml('<BooleanDomain name="bool"/>')

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -23,6 +24,9 @@ from .algorithm import ParticleStage
 from .contour import mesh_to_polydata
 from .surface_options import SURFACE_DEFAULTS
 
+if TYPE_CHECKING:
+    from typing import Any, Iterable, Sequence
+
 __all__ = ["FeatureSmoothing", "InterpolateAttributes", "check_optional_str", "check_names",
            "check_optional_range", "particles_from", "radii_from"]
 
@@ -32,14 +36,14 @@ __all__ = ["FeatureSmoothing", "InterpolateAttributes", "check_optional_str", "c
 # --------------------------------------------------------------------------------------------
 
 
-def check_optional_str(name, value):
+def check_optional_str(name: str, value: Any) -> str | None:
     """``value``: a point array name or None (TypeError naming ``name`` otherwise)."""
     if value is not None and not (isinstance(value, str) and value):
         raise TypeError(f"{name} must be a point array name or None, got {value!r}")
     return value
 
 
-def check_names(name, values):
+def check_names(name: str, values: Iterable[str]) -> tuple[str, ...]:
     """``values`` as a tuple of point array names (TypeError naming ``name`` otherwise)."""
     if isinstance(values, str):
         raise TypeError(f"{name} must be a sequence of point array names, got the string "
@@ -54,13 +58,14 @@ def check_names(name, values):
     return values
 
 
-def check_optional_range(name, value, low, high, low_inclusive=True):
+def check_optional_range(name: str, value: float | None, low: float, high: float,
+                         low_inclusive: bool = True) -> float | None:
     """None, or ``value`` checked by :func:`filters.validation.check_range`."""
     return None if value is None else check_range(name, value, low, high,
                                                   low_inclusive=low_inclusive)
 
 
-def particles_from(inp):
+def particles_from(inp: vtkPointSet) -> np.ndarray:
     """Particle positions (N, 3) float64 (m) of a vtkPointSet."""
     n = inp.GetNumberOfPoints()
     if n == 0:
@@ -68,7 +73,8 @@ def particles_from(inp):
     return numpy_support.vtk_to_numpy(inp.GetPoints().GetData()).astype(np.float64)
 
 
-def radii_from(inp, positions, radius, radius_array):
+def radii_from(inp: vtkPointSet, positions: np.ndarray, radius: float,
+               radius_array: str | None) -> float | np.ndarray:
     """The particle radii (m): ``radius`` or, when there are particles, the ``radius_array``."""
     if radius_array and positions.shape[0]:
         arr = inp.GetPointData().GetArray(radius_array)
@@ -158,9 +164,9 @@ class InterpolateAttributes(ParticleStage):
         As in :class:`MetaballSplat`.
     """
 
-    def __init__(self, attributes=SURFACE_DEFAULTS["attributes"], *,
+    def __init__(self, attributes: Sequence[str] = SURFACE_DEFAULTS["attributes"], *,
                  radius: float = SURFACE_DEFAULTS["radius"], cell_size: float | None = None,
-                 kernel: str = SURFACE_DEFAULTS["kernel"], support_r=None,
+                 kernel: str = SURFACE_DEFAULTS["kernel"], support_r: float | None = None,
                  blobbiness: float = 4.0, radius_array: str | None = None):
         self.attributes = check_names("attributes", attributes)
         self.radius = check_range("radius", radius, 0.0, math.inf, low_inclusive=False)

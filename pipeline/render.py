@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -25,6 +26,11 @@ from .offscreen import GL_PACKAGES, RenderUnavailableError
 from .outfiles import atomic_path, temporary_path
 from .renderer import Renderer
 from .series import read_collection, read_frame
+
+if TYPE_CHECKING:
+    from typing import Any, Iterable, Sequence
+
+    SeriesPaths = str | Path | Sequence[str | Path]  # one series or several
 
 __all__ = ["Renderer", "RenderUnavailableError", "turntable", "timelapse", "write_movie",
            "parse_size", "MOVIE_SUFFIXES", "interesting_frame", "frame_at_time", "render_run",
@@ -55,10 +61,10 @@ def _series_list(series) -> list[Path]:
     return [Path(p) for p in ([series] if isinstance(series, (str, Path)) else series)]
 
 
-def interesting_frame(series) -> tuple[int, str]:
+def interesting_frame(series: SeriesPaths) -> tuple[int, str]:
     """The most interesting frame of a run's series, and why (:mod:`pipeline.framing`).
 
-    The largest area of a liquid surface (a polygonal series named ``surface``), else the
+    The largest area of a liquid surface (:func:`pipeline.looks.is_liquid_surface`), else the
     largest sum of squared point velocities of the first series with a ``velocity`` array (the
     kinetic energy of unit masses), else the last frame.
 
@@ -80,7 +86,7 @@ def interesting_frame(series) -> tuple[int, str]:
     # a liquid surface decides alone; velocities are read only where there is none
     for wanted, first in ((0, True), (1, False)):
         for path, entries in same:
-            if first and not path.name.startswith("surface"):
+            if first and not _liquid_series(path, entries):
                 continue
             values = [frame_measures(path.name, read_frame(path.parent / name))[wanted]
                       for _, name in entries]
@@ -93,7 +99,15 @@ def interesting_frame(series) -> tuple[int, str]:
     return max(n - 1, 0), "last frame"
 
 
-def frame_at_time(series, time: float) -> int:
+def _liquid_series(path: Path, entries) -> bool:
+    """Whether a series is a liquid's surface, by its first frame (looks.is_liquid_surface)."""
+    from .looks import is_liquid_surface
+
+    return bool(entries) and is_liquid_surface(path.name.split(".")[0],
+                                               read_frame(path.parent / entries[0][1]))
+
+
+def frame_at_time(series: SeriesPaths, time: float) -> int:
     """Index of the frame of ``series`` (its first collection) nearest ``time`` (s).
 
     Raises
@@ -112,7 +126,7 @@ def frame_at_time(series, time: float) -> int:
     return int(np.argmin(np.abs(times - time)))
 
 
-def write_movie(images, out, *, fps: float = 24.0, count: int | None = None,
+def write_movie(images: Iterable[np.ndarray], out: str | Path, *, fps: float = 24.0, count: int | None = None,
                 progress: bool = True, desc: str = "render") -> Path:
     """Write images to ``out``: a ``.gif``, an ``.mp4`` or a folder of numbered PNG files.
 
@@ -184,7 +198,7 @@ class RenderError(ValueError):
 FPS_RANGE = (0.01, 1000.0)
 
 
-def check_fps(fps) -> float:
+def check_fps(fps: float) -> float:
     """``fps`` as a float within :data:`FPS_RANGE`, else ValueError naming the range."""
     return check_range("fps", fps, *FPS_RANGE)
 
@@ -201,7 +215,7 @@ def gif_limit(size) -> tuple[int, str]:
                    f"of {format_bytes(memory_limit())}")
 
 
-def max_views(size, out) -> tuple[int, str]:
+def max_views(size: tuple[int, int], out: str | Path) -> tuple[int, str]:
     """The most views a turntable ``out`` of ``size`` (width, height) may have, and why.
 
     More than ``pi * width`` views turn the camera by less than a pixel at the image's edge
@@ -253,8 +267,9 @@ def _turntable_index(series, time_index, time) -> tuple[int, str]:
     return interesting_frame(series)
 
 
-def turntable(series, out, *, frames: int = 36, time_index: int | None = None,
-              time: float | None = None, size=(640, 480), color_by: str | None = None,
+def turntable(series: SeriesPaths, out: str | Path, *, frames: int = 36, time_index: int | None = None,
+              time: float | None = None, size: tuple[int, int] = (640, 480),
+              color_by: str | None = None,
               fps: float = 24.0, progress: bool = True) -> Path:
     """Orbit the camera once around one time step of ``series``: a seamless loop.
 
@@ -286,7 +301,8 @@ def turntable(series, out, *, frames: int = 36, time_index: int | None = None,
         return write_movie(images, out, fps=fps, count=frames, progress=progress, desc="turntable")
 
 
-def timelapse(series, out, *, orbit: float = 0.0, size=(640, 480), color_by: str | None = None,
+def timelapse(series: SeriesPaths, out: str | Path, *, orbit: float = 0.0,
+              size: tuple[int, int] = (640, 480), color_by: str | None = None,
               fps: float | None = None, progress: bool = True) -> Path:
     """Draw every time step of ``series`` in order, optionally orbiting ``orbit`` degrees overall.
 
@@ -303,8 +319,9 @@ def timelapse(series, out, *, orbit: float = 0.0, size=(640, 480), color_by: str
         return write_movie(images, out, fps=fps, count=n, progress=progress, desc="time-lapse")
 
 
-def render_still(series, out, *, time_index: int | None = None, time: float | None = None,
-                 size=(640, 480), azimuth: float = 0.0, text: bool = True) -> tuple[Path, int]:
+def render_still(series: SeriesPaths, out: str | Path, *, time_index: int | None = None,
+                 time: float | None = None, size: tuple[int, int] = (640, 480),
+                 azimuth: float = 0.0, text: bool = True) -> tuple[Path, int]:
     """Draw one image of ``series`` to a PNG file (atomically): at ``time`` (s), else at
     ``time_index``, else at the most interesting frame.
 
@@ -327,7 +344,8 @@ def render_still(series, out, *, time_index: int | None = None, time: float | No
     return out, index
 
 
-def render_run(series_paths, directory, *, turntable_frames: int = 24, size=(640, 480),
+def render_run(series_paths: Sequence[str | Path], directory: str | Path, *,
+               turntable_frames: int = 24, size: tuple[int, int] = (640, 480),
                time: float | None = None, progress: bool = True) -> dict[str, Path]:
     """The renders ``blobflow run`` makes of a finished run.
 
@@ -362,7 +380,7 @@ def render_run(series_paths, directory, *, turntable_frames: int = 24, size=(640
 
 
 # -- frame-parallel rendering (serial, or on a Dask cluster) --------------------------------------
-def render_frame_task(series, out_file, time, options) -> None:
+def render_frame_task(series: SeriesPaths, out_file: str, time: float, options: dict) -> None:
     """Task: draw one image (``options``: index, azimuth, size, color_by, bounds, clim,
     age_scale) to PNG."""
     import imageio.v2 as imageio
@@ -375,7 +393,7 @@ def render_frame_task(series, out_file, time, options) -> None:
         imageio.imwrite(tmp, image)
 
 
-def render_frames(series, out, *, client=None, turntable_frames: int | None = None,
+def render_frames(series: SeriesPaths, out: str | Path, *, client: Any = None, turntable_frames: int | None = None,
                   time_index: int | None = None, time: float | None = None,
                   orbit: float = 0.0, size=(640, 480),
                   color_by: str | None = None, fps: float | None = None,

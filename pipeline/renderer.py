@@ -1,8 +1,9 @@
 """The offscreen :class:`Renderer`: frames of series, with their colliders, as images.
 
 A :class:`Renderer` draws one or more series (a liquid surface, particles, cloth...) with a look
-chosen from the data (:mod:`pipeline.looks`): a polygonal series named ``surface`` as water
-(shiny), other polygonal series as matte solids (cloth, jello), lines as tubes (hair), points
+chosen from the data (:mod:`pipeline.looks`): a liquid's surface as water (shiny; the
+surface stages tag it, :func:`pipeline.looks.is_liquid_surface`), other polygonal series as
+matte solids (cloth, jello), lines as tubes (hair), points
 carrying an ``age`` array (emitted particles) as smoke, other points as small spheres.  The
 colliders of the run (``colliders.vtp`` beside the series, :mod:`pipeline.colliders`) are drawn
 with them: containers as glass with dark edges, solids in a neutral grey, and the floor where
@@ -17,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -37,6 +38,9 @@ from .framing import (CLIP_REACH, clipping_range, frame_measures, interesting_in
                       robust_bounds)
 from .series import read_collection, read_frame  # noqa: E402
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 __all__ = ["Renderer", "SUPERSAMPLE"]
 
 #: Images are drawn this many times larger per side and box-filtered down (anti-aliasing that
@@ -53,13 +57,14 @@ class _Layer:
     slot: object = None     # the dataset the actor draws; refilled every frame
     actor: object = None
     kind: str = "points"
+    of_particles: bool = False  # a surface contoured around particles (looks.is_particle_surface)
 
 
 def _kind(name: str, data) -> str:
     if data.GetNumberOfCells() == 0 and data.GetNumberOfPoints() == 0:
         return "empty"
     if hasattr(data, "GetNumberOfPolys") and data.GetNumberOfPolys() > 0:
-        return "water" if name.startswith("surface") else "solid"
+        return "water" if looks.is_liquid_surface(name, data) else "solid"
     if data.IsA("vtkUnstructuredGrid") and data.GetNumberOfCells() and data.GetCellType(0) > 4:
         return "solid"
     if hasattr(data, "GetNumberOfLines") and data.GetNumberOfLines() > 0:
@@ -120,10 +125,12 @@ class Renderer:
         With no display and neither EGL nor OSMesa installed (VTK would crash).
     """
 
-    def __init__(self, series: Sequence, *, size=(640, 480), color_by: str | None = None,
+    def __init__(self, series: str | Path | Sequence[str | Path], *,
+                 size: tuple[int, int] = (640, 480), color_by: str | None = None,
                  floor: bool = True, text: bool = True, frames: Sequence[int] | None = None,
                  bounds: Sequence[float] | None = None, clim: Sequence[float] | None = None,
-                 colliders="auto", shadows: bool = True, age_scale: float | None = None):
+                 colliders: str | Path | None = "auto", shadows: bool = True,
+                 age_scale: float | None = None):
         if isinstance(series, (str, Path)):
             series = [series]
         if not series:
@@ -167,14 +174,16 @@ class Renderer:
         what makes a frame interesting (liquid surface area, kinetic energy)."""
         for layer in self.layers:
             for i in indices:  # the first frame with data decides the look
-                layer.kind = _kind(layer.name, self._frame(layer, i))
+                data = self._frame(layer, i)
+                layer.kind = _kind(layer.name, data)
+                layer.of_particles = looks.is_particle_surface(layer.name, data)
                 if layer.kind != "empty":
                     break
         kinds = {layer.kind for layer in self.layers}
         # With a liquid surface its particles would only clutter the picture; smoke is drawn
         # from its particles, never from a surface contoured around them.
         if "smoke" in kinds:
-            self.layers = [l for l in self.layers if l.kind != "water"]
+            self.layers = [l for l in self.layers if not l.of_particles]
         elif "water" in kinds:
             self.layers = [l for l in self.layers if l.kind != "points"]
         boxes, clim, oldest = [], [np.inf, -np.inf], 0.0
@@ -537,7 +546,7 @@ class Renderer:
         # box filter: each output pixel the mean of the window pixels it covers
         return np.asarray(Image.fromarray(image).resize((w, h), Image.Resampling.BOX))
 
-    def pixels_of(self, points) -> np.ndarray:
+    def pixels_of(self, points: ArrayLike) -> np.ndarray:
         """Where world points fall in the image of the last :meth:`render`.
 
         Parameters

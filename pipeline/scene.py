@@ -16,9 +16,13 @@ from __future__ import annotations
 import inspect
 import re
 from importlib.metadata import entry_points
+from typing import TYPE_CHECKING
 
 from .assignments import Parameter, parse_assignments
 from .compose import Flow
+
+if TYPE_CHECKING:
+    from typing import Any, Callable, Iterable
 
 __all__ = ["Scene", "Parameter", "available_scenes", "load_scene", "ENTRY_POINT_GROUP"]
 
@@ -67,8 +71,8 @@ class Scene:
         largest kinetic energy).
     """
 
-    def __init__(self, name: str, build, description: str, *, fps: float = 30.0,
-                 duration: float = 2.0, still: float | None = None):
+    def __init__(self, name: str, build: Callable[..., Flow], description: str, *,
+                 fps: float = 30.0, duration: float = 2.0, still: float | None = None):
         self.name = name
         self.build_function = build
         self.description = description
@@ -88,7 +92,7 @@ class Scene:
     def __repr__(self) -> str:
         return f"Scene({self.name!r}, parameters={list(self.parameters)})"
 
-    def parse_assignments(self, assignments) -> dict:
+    def parse_assignments(self, assignments: Iterable[str] | None) -> dict[str, Any]:
         """Turn ``["name=value", ...]`` into typed parameters.
 
         Raises
@@ -104,7 +108,7 @@ class Scene:
         """Every parameter with its default value."""
         return {name: p.default for name, p in self.parameters.items()}
 
-    def build(self, **parameters) -> Flow:
+    def build(self, **parameters: Any) -> Flow:
         """Build the scene's flow with ``parameters`` overriding the defaults."""
         unknown = set(parameters) - set(self.parameters)
         if unknown:

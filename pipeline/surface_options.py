@@ -6,6 +6,7 @@ tank, for the scenes and from a run record (``scene.json``) for ``blobflow surfa
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 from filters.geometry import Box
 from filters.surface.grid import DEFAULT_MAX_BYTES
@@ -13,38 +14,30 @@ from filters.validation import check_range
 
 from .assignments import Parameter
 
-__all__ = ["SURFACE_DEFAULTS", "SURFACE_PARAMETERS", "liquid_surface_options",
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+__all__ = ["SURFACE_DEFAULTS", "SURFACE_PARAMETERS", "OPTION_DEFAULTS", "liquid_surface_options",
            "surface_options_from_record"]
 
-#: Defaults of :func:`pipeline.surface.surface_stages`: the surface of the liquid scenes and of ``blobflow
-#: surface`` (particle radius 0.01 m unless the run record gives the spacing).
-SURFACE_DEFAULTS = {
-    "radius": 0.01,
-    "kernel": "sph",
-    "anisotropic": True,
-    "feature_smoothing": 25,
-    "smooth_iterations": 30,
-    "pass_band": 0.01,
-    "normals": True,
-    "attributes": ("velocity",),
-    "volume_correction": True,
-}
-
-
-#: Types of the options of :func:`pipeline.surface.surface_stages` (``blobflow surface --option NAME=VALUE``).
+#: Every surface option that ``blobflow surface --option NAME=VALUE`` can set: its default, a
+#: short description and its type. The one table of defaults: the signatures of
+#: :func:`pipeline.surface.surface_stages` and :func:`pipeline.surface.reconstruct` take theirs
+#: from :data:`OPTION_DEFAULTS`, built from it.
 SURFACE_PARAMETERS = {p.name: p for p in (
-    Parameter("radius", SURFACE_DEFAULTS["radius"], "particle radius (m)"),
+    Parameter("radius", 0.01, "particle radius (m)"),
     Parameter("cell_size", None, "voxel edge (m)", kind="float"),
-    Parameter("kernel", SURFACE_DEFAULTS["kernel"], "splatting kernel"),
-    Parameter("anisotropic", SURFACE_DEFAULTS["anisotropic"], "anisotropic kernels"),
-    Parameter("feature_smoothing", SURFACE_DEFAULTS["feature_smoothing"], "feature sweeps"),
-    Parameter("smooth_iterations", SURFACE_DEFAULTS["smooth_iterations"], "windowed sinc"),
-    Parameter("pass_band", SURFACE_DEFAULTS["pass_band"], "windowed-sinc pass band"),
-    Parameter("normals", SURFACE_DEFAULTS["normals"], "point normals"),
-    Parameter("attributes", SURFACE_DEFAULTS["attributes"], "particle arrays carried",
-              kind="names"),
-    Parameter("volume_correction", SURFACE_DEFAULTS["volume_correction"],
-              "pieces enclose their particles' volume"),
+    Parameter("kernel", "sph", "splatting kernel"),
+    Parameter("anisotropic", True, "anisotropic kernels"),
+    Parameter("feature_smoothing", 25, "feature sweeps"),
+    Parameter("smooth_iterations", 30, "windowed sinc"),
+    Parameter("pass_band", 0.01, "windowed-sinc pass band"),
+    Parameter("normals", True, "point normals"),
+    Parameter("attributes", ("velocity",), "particle arrays carried", kind="names"),
+    Parameter("liquid", False, "the particles are a liquid's (spacing 2 radius): volume "
+              "correction, drawn as water"),
+    Parameter("volume_correction", None, "pieces enclose their particles' volume (default: "
+              "when liquid)", kind="bool"),
     Parameter("support_r", None, "support radius / particle radius", kind="float"),
     Parameter("blobbiness", 4.0, "blobby kernel's a"),
     Parameter("radius_array", None, "point array of radii (m)", kind="str"),
@@ -58,20 +51,31 @@ SURFACE_PARAMETERS = {p.name: p for p in (
     Parameter("contour", "flying_edges", "flying_edges or tetrahedra"),
 )}
 
+#: The default of every option of :data:`SURFACE_PARAMETERS`, by name.
+OPTION_DEFAULTS: dict[str, Any] = {name: p.default for name, p in SURFACE_PARAMETERS.items()}
+
+#: The main options and their defaults: the options of the ParaView plugin's panel and of
+#: ``blobflow surface --help``. With ``liquid=True`` (:func:`liquid_surface_options`: the liquid
+#: scenes, and ``blobflow surface`` on their particles) they are the liquid scenes' surface.
+SURFACE_DEFAULTS: dict[str, Any] = {name: OPTION_DEFAULTS[name] for name in (
+    "radius", "kernel", "anisotropic", "feature_smoothing", "smooth_iterations", "pass_band",
+    "normals", "attributes", "liquid", "volume_correction")}
 
 
-def liquid_surface_options(spacing: float, tank_lo=None, tank_hi=None, **options) -> dict:
+def liquid_surface_options(spacing: float, tank_lo: ArrayLike | None = None,
+                           tank_hi: ArrayLike | None = None, **options: Any) -> dict[str, Any]:
     """Options of :func:`pipeline.surface.surface_stages` for a liquid of particle spacing ``spacing`` (m).
 
     The particle radius is half the spacing (kernel support of two spacings, as splashsurf
     uses); with a tank, its inner box ``[tank_lo, tank_hi]`` (m) bounds the liquid: the
     particles near its walls are mirrored across them and the surface is cut exactly at them
     (``mirror_walls``: flat where the liquid touches a wall, meeting the walls' edges and
-    corners without a gap), and the volume correction keeps the vertices on the walls; the rest
-    are :data:`SURFACE_DEFAULTS` unless given in ``options``.
+    corners without a gap), and the volume correction keeps the vertices on the walls; the
+    particles are a liquid's (``liquid=True``: the volume correction, a surface drawn as
+    water); the rest are :data:`OPTION_DEFAULTS` unless given in ``options``.
     """
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
-    result = {"radius": 0.5 * spacing}
+    result = {"radius": 0.5 * spacing, "liquid": True}
     if tank_lo is not None or tank_hi is not None:
         result["implicit"] = Box(tank_lo, tank_hi)
         result["operation"] = "intersection"
@@ -81,21 +85,25 @@ def liquid_surface_options(spacing: float, tank_lo=None, tank_hi=None, **options
 
 
 def surface_options_from_record(record: dict) -> dict:
-    """The surface options of the run that wrote a record (``scene.json``), for a liquid.
+    """The surface options of the run that wrote a record (``scene.json``).
 
-    From the scene's parameters: the particle radius from ``spacing``, the tank
-    (``tank_length``, ``tank_width`` or ``depth``, ``tank_height``, from the origin) as the
-    clipping box, and ``anisotropic``, ``smooth_iterations`` and ``feature_smoothing`` when the
-    scene has them (:func:`liquid_surface_options`: the surface the liquid scenes write). An
-    empty dict when the record has no ``spacing``.
+    From the scene's parameters: the particle radius from ``spacing``; with a tank
+    (``tank_length``, ``tank_width`` or ``depth``, ``tank_height``, from the origin: the liquid
+    scenes) the particles are a liquid's in it (:func:`liquid_surface_options`: the tank as the
+    clipping box, ``liquid=True``), and ``anisotropic``, ``smooth_iterations`` and
+    ``feature_smoothing`` when the scene has them (the surface the liquid scenes write). An
+    empty dict when the record has no ``spacing``; only the radius without a tank (particles
+    that are no liquid's, e.g. a lattice of balls).
     """
     params = record.get("parameters") if isinstance(record, dict) else None
     if not isinstance(params, dict) or "spacing" not in params:
         return {}
     width = params.get("tank_width", params.get("depth"))
     tank = (params.get("tank_length"), width, params.get("tank_height"))
-    corners = ((0.0, 0.0, 0.0), tuple(float(v) for v in tank)) if None not in tank else (None,
-                                                                                         None)
+    if None in tank:
+        spacing = check_range("spacing", params["spacing"], 0.0, math.inf, low_inclusive=False)
+        return {"radius": 0.5 * float(spacing)}
+    corners = ((0.0, 0.0, 0.0), tuple(float(v) for v in tank))
     options = {k: params[k] for k in ("anisotropic", "smooth_iterations", "feature_smoothing")
                if k in params}
     return liquid_surface_options(float(params["spacing"]), *corners, **options)

@@ -25,12 +25,17 @@ import json
 import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from filters.validation import check_range
 
 from .outfiles import atomic_path
+
+if TYPE_CHECKING:
+    from typing import Sequence
+    from numpy.typing import ArrayLike
 
 __all__ = ["export_usd", "UsdUnavailableError", "time_codes"]
 
@@ -49,7 +54,7 @@ def _pxr():
     return Sdf, Usd, UsdGeom, Vt
 
 
-def time_codes(times, fps: float) -> np.ndarray:
+def time_codes(times: ArrayLike, fps: float) -> np.ndarray:
     """USD time codes of frame times: ``t * fps``, snapped to the nearest integer within 1e-6.
 
     Parameters
@@ -202,7 +207,7 @@ def _write_series(stage, path: Path, name: str, times, meshes, codes, radius, Us
     return kind
 
 
-def export_usd(series, usd_path, *, fps: float | None = None,
+def export_usd(series: str | Path | Sequence[str | Path], usd_path: str | Path, *, fps: float | None = None,
                radius: float | None = None) -> Path:
     """Write one or more series as one USD stage, one time sample per frame.
 

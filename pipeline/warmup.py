@@ -15,8 +15,13 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from filters.simulation import OutputSpec
+    from .sources import SimulationSource
 
 __all__ = ["surface_cache_is_warm", "compile_surface_in_background", "simulate_while"]
 
@@ -80,7 +85,8 @@ def _compile_surface(options: dict, spec) -> None:  # runs in the child process
     run_chain(surface_stages(**options), frame_to_vtk(frame, spec, "polydata"))
 
 
-def compile_surface_in_background(options: dict, spec):
+def compile_surface_in_background(options: dict,
+                                  spec: OutputSpec) -> multiprocessing.Process | None:
     """Start compiling the surface stages of ``options`` in another process, when that helps.
 
     Parameters
@@ -108,7 +114,8 @@ def compile_surface_in_background(options: dict, spec):
     return worker
 
 
-def simulate_while(worker, source, limit: int = MAX_FRAMES_AHEAD) -> int:
+def simulate_while(worker: multiprocessing.Process, source: SimulationSource,
+                   limit: int = MAX_FRAMES_AHEAD) -> int:
     """Step ``source`` (a :class:`pipeline.sources.SimulationSource`) through its next frames
     while ``worker`` runs, at most ``limit`` frames and its cache's size; then wait for it.
 

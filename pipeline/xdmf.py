@@ -21,12 +21,16 @@ Reference: the XDMF model and format, https://www.xdmf.org/index.php/XDMF_Model_
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from vtkmodules.util import numpy_support
 
 from .outfiles import atomic_path
+
+if TYPE_CHECKING:
+    import pyvista as pv
 
 __all__ = ["export_xdmf", "xdmf_topology"]
 
@@ -71,7 +75,7 @@ def _cells(mesh):
     return types, off, np.asarray(mesh.cell_connectivity, dtype=np.int64)
 
 
-def xdmf_topology(mesh):
+def xdmf_topology(mesh: pv.DataSet) -> tuple[dict[str, str], np.ndarray]:
     """The XDMF topology of a PyVista dataset's cells.
 
     Parameters
@@ -157,7 +161,7 @@ def _attribute(name: str, values: np.ndarray, h5_name: str, path: str) -> str:
             f'{_data_item(values, h5_name, path)}</Attribute>')
 
 
-def export_xdmf(series_path, xdmf_path=None) -> Path:
+def export_xdmf(series_path: str | Path, xdmf_path: str | Path | None = None) -> Path:
     """Export a fixed-topology series as XDMF + HDF5 that ParaView opens as one animated mesh.
 
     Every frame is a grid of the temporal collection with its time, its points and its point

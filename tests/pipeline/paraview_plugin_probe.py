@@ -1,17 +1,18 @@
-"""Run by Debian's ``pvpython`` (not by pytest): load blobflow's plugin and use it.
+"""Appended by the test to the README's pvpython recipe (``exec(open(".../paraview_startup.py")
+.read())``), in a script run by Debian's ``pvpython`` from another folder: use the plugin the
+recipe loaded into this script's namespace.
 
-Usage: pvpython paraview_plugin_probe.py STARTUP PARTICLES.pvd RADIUS OUT_DIR -> one JSON line.
-The surface filter runs on the particle series at its first two time steps (each surface is
-written to OUT_DIR for the test to compare); the ``bouncing`` scene source runs into OUT_DIR/run.
+Usage: pvpython SCRIPT PARTICLES.pvd RADIUS OUT_DIR -> one JSON line. The surface filter runs
+on the particle series at its first two time steps (each surface is written to OUT_DIR for the
+test to compare); the ``bouncing`` scene source runs into OUT_DIR/run.
 """
 
 import json
 import sys
 import time
 
-startup, particles, radius, out = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4]
-ns = {"__file__": startup, "__name__": "__main__"}
-exec(open(startup).read(), ns)  # noqa: S102 - ParaView's own startup for the plugin
+particles, radius, out = sys.argv[1], float(sys.argv[2]), sys.argv[3]
+ns = globals()
 
 from paraview import servermanager  # noqa: E402
 from paraview.simple import OpenDataFile  # noqa: E402
@@ -26,7 +27,7 @@ surface = ns["blobflowParticleSurface"](Input=reader, Radius=radius, FeatureSmoo
 surface.Kernel = "sph"
 result["panel"] = {name: str(surface.GetPropertyValue(name)) for name in (
     "Radius", "Kernel", "Anisotropic", "FeatureSmoothing", "SmoothIterations", "PassBand",
-    "Normals", "Attributes")}
+    "Normals", "Attributes", "Liquid", "VolumeCorrection")}
 result["surfaces"] = []
 for index, t in enumerate(list(reader.TimestepValues)[:2]):
     start = time.perf_counter()
@@ -44,10 +45,20 @@ for index, t in enumerate(list(reader.TimestepValues)[:2]):
     writer.SetInputData(mesh)
     writer.SetFileName(f"{out}/plugin_surface_{index}.vtp")
     writer.Write()
+    kind = mesh.GetFieldData().GetAbstractArray("blobflow_kind")
     result["surfaces"].append({"time": t, "points": mesh.GetNumberOfPoints(),
+                               "kind": kind.GetValue(0) if kind is not None else None,
                                "triangles": mesh.GetNumberOfPolys(),
                                "open_edges": edges.GetOutput().GetNumberOfLines(),
                                "seconds": seconds})
+
+liquid = ns["blobflowParticleSurface"](Input=reader, Radius=radius, FeatureSmoothing=5,
+                                       SmoothIterations=10, Liquid=1)
+liquid.UpdatePipeline(list(reader.TimestepValues)[0])
+writer = vtkXMLPolyDataWriter()
+writer.SetInputData(servermanager.Fetch(liquid))
+writer.SetFileName(f"{out}/plugin_liquid_0.vtp")
+writer.Write()
 
 scene = ns["blobflowbouncing"](Count=2, FPS=10.0, Duration=0.3, Folder=f"{out}/run")
 scene.UpdatePipelineInformation()

@@ -242,3 +242,26 @@ def test_paraview_command_names_the_plugin(capsys):
     assert f"--script={plugin.with_name('paraview_startup.py')}" in out
     code, _, err = _run_cli(capsys, "paraview", "file.pvd")
     assert code == 2 and "need --launch" in err
+
+
+def test_paraview_launch_without_a_display_says_what_to_install(tmp_path, capsys, monkeypatch):
+    # a `paraview` on PATH that would fail loudly if it were started
+    fake = tmp_path / "bin" / "paraview"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\necho started >&2\nexit 250\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake.parent}:/usr/bin:/bin")
+    monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    data = tmp_path / "data.pvd"
+    data.write_text("<VTKFile/>")
+    for display in (None, ":4711"):  # none at all; one nobody serves
+        if display is None:
+            monkeypatch.delenv("DISPLAY", raising=False)
+        else:
+            monkeypatch.setenv("DISPLAY", display)
+        code, out, err = _run_cli(capsys, "paraview", "--launch", str(data))
+        assert code == 2 and out == "" and err.count("\n") == 1, err
+        assert "xvfb-run" in err and "apt-get install xvfb" in err and "started" not in err
+    code, _, err = _run_cli(capsys, "paraview", "--launch", str(tmp_path / "missing.pvd"))
+    assert code == 2 and "no such file" in err

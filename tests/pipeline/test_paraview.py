@@ -4,9 +4,13 @@ blobflow's plugin: the surface filter on a particle series, a scene as a tempora
 import ast
 import json
 import os
+import re
+import shlex
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +20,7 @@ from filters import BallisticParticles
 from filters.kernels import SPLAT_KERNELS
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
-from pipeline.scene import load_scene
+from pipeline.scene import available_scenes, load_scene
 from pipeline.series import read_frame, read_series
 from pipeline.surface import reconstruct
 from pipeline.surface_options import SURFACE_DEFAULTS
@@ -24,27 +28,72 @@ from pipeline.surface_options import SURFACE_DEFAULTS
 from _helpers import ballistic
 
 PVPYTHON = shutil.which("pvpython")
+PVBATCH = shutil.which("pvbatch")
+PARAVIEW = shutil.which("paraview")
+XVFB_RUN = shutil.which("xvfb-run")
 HERE = Path(__file__).parent
-PLUGIN = Path(__file__).resolve().parents[2] / "pipeline" / "paraview_plugin.py"
+ROOT = Path(__file__).resolve().parents[2]
+PLUGIN = ROOT / "pipeline" / "paraview_plugin.py"
 STARTUP = PLUGIN.with_name("paraview_startup.py")
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+SCENE_COUNT = len(list(available_scenes()))
 
 needs_pvpython = pytest.mark.skipif(
     PVPYTHON is None, reason="pvpython not found: install Debian's 'paraview' package "
     "(.ci/run does) to run the ParaView round trips")
+needs_gui = pytest.mark.skipif(
+    PARAVIEW is None or XVFB_RUN is None, reason="paraview or xvfb-run not found: install "
+    "Debian's 'paraview' and 'xvfb' packages (.ci/run does) to start ParaView's GUI headless")
 pytestmark = [pytest.mark.paraview]
+
+
+def _blobflow_python(folder):
+    """blobflow's Python as the plugin should run it: this interpreter, with this process's
+    PYTHONPATH (a worktree's code) in a wrapper, since the plugin drops ParaView's PYTHONPATH."""
+    path = os.environ.get("PYTHONPATH")
+    if not path:
+        return sys.executable
+    wrapper = Path(folder) / "blobflow-python"
+    wrapper.write_text(f'#!/bin/sh\nPYTHONPATH={shlex.quote(path)} exec '
+                       f'{shlex.quote(sys.executable)} "$@"\n')
+    wrapper.chmod(0o755)
+    return str(wrapper)
+
+
+def _environment(tmp_path, **extra):
+    """A clean environment for ParaView's programs: no venv, no PYTHONPATH of ours."""
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path),
+           "BLOBFLOW_PYTHON": _blobflow_python(tmp_path)}
+    for name in ("NUMBA_NUM_THREADS", "NUMBA_CACHE_DIR"):
+        if name in os.environ:
+            env[name] = os.environ[name]
+    env.update(extra)
+    return env
 
 
 def _pvpython(script, *arguments, tmp_path=None, timeout=240):
     env = {"PATH": "/usr/bin:/bin", "BLOBFLOW_PYTHON": sys.executable,
            "HOME": str(tmp_path or Path.home())}
-    for name in ("NUMBA_NUM_THREADS", "NUMBA_CACHE_DIR"):
-        if name in os.environ:
-            env[name] = os.environ[name]
     result = subprocess.run([PVPYTHON, str(script), *map(str, arguments)], capture_output=True,
                             text=True, timeout=timeout, env=env)
     assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
     line = next(l for l in result.stdout.splitlines() if l.startswith("PROBE "))
     return json.loads(line[len("PROBE "):]), result.stderr
+
+
+def _readme_recipe(pattern):
+    """The README's ParaView recipe matching ``pattern`` (a regex on the text between
+    backticks), with PATH made this clone's root."""
+    section = README.split("### The ParaView plugin", 1)[1].split("\n## ", 1)[0]
+    recipes = [r.replace("\n", " ") for r in re.findall(r"`([^`]+)`", section)
+               if re.fullmatch(pattern, r.replace("\n", " "))]
+    assert len(recipes) == 1, f"{len(recipes)} recipes like {pattern} in the README's section"
+    return recipes[0].replace("PATH/", f"{ROOT}/")
+
+
+EXEC_RECIPE = r'exec\(open\("PATH/pipeline/paraview_startup\.py"\)\.read\(\)\)'
+LOADED = re.compile(r"blobflow: loaded the ParaView plugin (\S+) \(filter blobflowParticleSurface,"
+                    r" (\d+) scene sources\)")
 
 
 @pytest.fixture(scope="module")
@@ -121,25 +170,41 @@ def test_plugin_panel_defaults_are_blobflows():
 
 
 @needs_pvpython
-def test_plugin_surface_filter_and_scene_source(tmp_path):
+def test_readme_pvpython_recipe_loads_the_plugin_from_another_folder(tmp_path):
+    # the README's line, as typed, in a user's script run from a folder far from the clone
     x = (np.mgrid[0:6, 0:6, 0:6].reshape(3, -1).T + 0.5) * 0.01 + [0.0, 0.0, 1.0]
     flow = Flow(SimulationSource(BallisticParticles(x, np.zeros_like(x)), fps=10, duration=0.2))
     particles = flow.run(tmp_path / "series", progress=False)["particles"]
-    seen, _ = _pvpython(HERE / "paraview_plugin_probe.py", STARTUP, particles, 0.005, tmp_path,
-                        tmp_path=tmp_path)
+    user = tmp_path / "elsewhere"
+    user.mkdir()
+    script = user / "my_script.py"
+    script.write_text(_readme_recipe(EXEC_RECIPE) + "\n"
+                      + (HERE / "paraview_plugin_probe.py").read_text(encoding="utf-8"))
+    result = subprocess.run([PVPYTHON, script.name, str(particles), "0.005", str(tmp_path)],
+                            cwd=user,
+                            capture_output=True, text=True, timeout=300,
+                            env=_environment(tmp_path))
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    loaded = LOADED.search(result.stdout)
+    assert loaded and Path(loaded.group(1)) == PLUGIN and int(loaded.group(2)) == SCENE_COUNT
+    seen = json.loads(next(l for l in result.stdout.splitlines()
+                           if l.startswith("PROBE "))[len("PROBE "):])
     scenes = {f"blobflow{name}" for name in ("bouncing", "dam_break", "hair", "cloth_drape")}
     assert {"blobflowParticleSurface"} | scenes <= set(seen["proxies"])
     assert seen["panel"]["Kernel"].strip("'") == "sph"
     assert seen["panel"]["Anisotropic"] == "1" and seen["panel"]["Attributes"] == "velocity"
+    assert seen["panel"]["Liquid"] == "0" and seen["panel"]["VolumeCorrection"] == "'as Liquid'"
 
     # two time steps of the surface filter: closed surfaces, bitwise blobflow's reconstruct
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
     times, frames = read_series(particles)
     assert [s["time"] for s in seen["surfaces"]] == times[:2].tolist()
     for index, (step, frame) in enumerate(zip(seen["surfaces"], frames)):
         assert step["points"] > 0 and step["triangles"] > 0 and step["open_edges"] == 0
+        assert step["kind"] == "particle_surface"
         plugin = read_frame(tmp_path / f"plugin_surface_{index}.vtp")
         expected = reconstruct(frame, 0.005, feature_smoothing=5, smooth_iterations=10)
-        from vtkmodules.util.numpy_support import vtk_to_numpy
         np.testing.assert_array_equal(vtk_to_numpy(plugin.GetPoints().GetData()),
                                       np.asarray(expected.points))
         assert plugin.GetNumberOfPolys() == expected.n_cells
@@ -147,6 +212,13 @@ def test_plugin_surface_filter_and_scene_source(tmp_path):
             vtk_to_numpy(plugin.GetPointData().GetArray("velocity")),
             expected.point_data["velocity"])
     assert seen["surfaces"][0]["points"] != seen["surfaces"][1]["points"]  # it moved on
+    # Liquid on: the liquid's surface (volume correction), tagged as such
+    plugin = read_frame(tmp_path / "plugin_liquid_0.vtp")
+    expected = reconstruct(frames[0], 0.005, feature_smoothing=5, smooth_iterations=10,
+                           liquid=True)
+    np.testing.assert_array_equal(vtk_to_numpy(plugin.GetPoints().GetData()),
+                                  np.asarray(expected.points))
+    assert plugin.GetFieldData().GetAbstractArray("blobflow_kind").GetValue(0) == "liquid_surface"
 
     # the bouncing scene as a temporal source: its frames at its times, as the scene runs
     assert seen["scene_times"] == [0.0, 0.1, 0.2, 0.3]
@@ -156,3 +228,133 @@ def test_plugin_surface_filter_and_scene_source(tmp_path):
         z = reference.output("particles", step["time"]).points[:, 2].mean()
         assert step["z_mean"] == pytest.approx(z, abs=1e-12)
     assert (tmp_path / "run" / "particles.pvd").is_file()
+
+
+LIGHT_PROBE = ('print("PROBE " + __import__("json").dumps(sorted(n for n in globals() '
+               'if n.startswith("blobflow"))))')
+
+
+def _in_terminal(command, env, cwd):
+    """Start ``command`` in a terminal of its own (a pty, as a user would: line-buffered
+    output); return the terminal's end and the process."""
+    import pty
+
+    master, slave = pty.openpty()
+    process = subprocess.Popen(command, stdin=slave, stdout=slave, stderr=slave, env=env,
+                               cwd=cwd, start_new_session=True)
+    os.close(slave)
+    return master, process
+
+
+def _terminal_output(master, process, done, timeout=240):
+    """What the terminal shows until ``done(text)``, the process exits or ``timeout`` s."""
+    import select
+
+    out, deadline = b"", time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([master], [], [], 1.0)
+        if ready:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # the other end closed: the process exited
+                break
+            if not chunk:
+                break
+            out += chunk
+            if done(out.decode("utf-8", "replace")):
+                break
+        elif process.poll() is not None:
+            break
+    os.close(master)
+    return out.decode("utf-8", "replace").replace("\r", "")
+
+
+def _proxies(stdout):
+    return json.loads(next(l for l in stdout.splitlines()
+                           if l.startswith("PROBE "))[len("PROBE "):])
+
+
+@pytest.mark.skipif(PVBATCH is None, reason="pvbatch not found: install Debian's 'paraview'")
+def test_readme_pvbatch_recipe_loads_the_plugin_from_another_folder(tmp_path):
+    script = tmp_path / "batch.py"
+    script.write_text(_readme_recipe(EXEC_RECIPE) + "\n" + LIGHT_PROBE + "\n")
+    result = subprocess.run([PVBATCH, script.name], cwd=tmp_path, capture_output=True, text=True,
+                            timeout=300, env=_environment(tmp_path))
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    loaded = LOADED.search(result.stdout)
+    assert loaded and Path(loaded.group(1)) == PLUGIN
+    assert "blobflowParticleSurface" in _proxies(result.stdout)
+    assert len(_proxies(result.stdout)) == 1 + SCENE_COUNT
+
+
+@needs_pvpython
+def test_readme_recipe_typed_at_pvpythons_prompt(tmp_path):
+    # an interactive prompt (a terminal): no BLOBFLOW_PYTHON, no blobflow on PATH; the startup
+    # finds itself in the line typed
+    env = _environment(tmp_path, TERM="dumb")
+    del env["BLOBFLOW_PYTHON"]
+    master, process = _in_terminal([PVPYTHON], env, tmp_path)
+    for line in (_readme_recipe(EXEC_RECIPE), LIGHT_PROBE, "exit()"):
+        os.write(master, line.encode() + b"\n")
+    text = _terminal_output(master, process, lambda text: False)
+    assert process.wait(timeout=30) == 0
+    loaded = LOADED.search(text)
+    assert loaded and Path(loaded.group(1)) == PLUGIN, text[-2000:]
+    assert "blobflowParticleSurface" in _proxies(text)
+
+
+@needs_pvpython
+def test_readme_recipe_piped_to_pvpython_asks_blobflows_python(tmp_path):
+    # no file, no line history: BLOBFLOW_PYTHON tells where blobflow (and so the plugin) is
+    result = subprocess.run([PVPYTHON], input=_readme_recipe(EXEC_RECIPE) + "\n" + LIGHT_PROBE
+                            + "\n", cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                            env=_environment(tmp_path))
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    where = subprocess.run([_blobflow_python(tmp_path), "-c", "import pipeline; "
+                            "print(pipeline.__file__)"], capture_output=True, text=True,
+                           env=_environment(tmp_path), check=True).stdout.strip()
+    loaded = LOADED.search(result.stdout)
+    assert loaded and Path(loaded.group(1)) == Path(where).with_name("paraview_plugin.py")
+    assert len(_proxies(result.stdout)) == 1 + SCENE_COUNT
+    # and without any hint: one line saying what to set
+    env = _environment(tmp_path)
+    del env["BLOBFLOW_PYTHON"]
+    result = subprocess.run([PVPYTHON], input=_readme_recipe(EXEC_RECIPE) + "\n", cwd=tmp_path,
+                            capture_output=True, text=True, timeout=120, env=env)
+    assert "set BLOBFLOW_PYTHON" in result.stderr
+
+
+@needs_gui
+def test_readme_paraview_script_recipe_loads_the_plugin_in_the_gui(tmp_path):
+    recipe = shlex.split(_readme_recipe(r"paraview --script=PATH/pipeline/paraview_startup\.py"))
+    # headless: under Xvfb; --exit quits once the script has run
+    result = subprocess.run([XVFB_RUN, "-a", *recipe, "--exit"], cwd=tmp_path,
+                            capture_output=True, text=True, timeout=300,
+                            env=_environment(tmp_path))
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    loaded = LOADED.search(result.stdout)
+    assert loaded and Path(loaded.group(1)) == PLUGIN and int(loaded.group(2)) == SCENE_COUNT
+
+
+@needs_gui
+def test_readme_launch_recipe_opens_the_files_after_the_plugin(series, tmp_path):
+    recipe = shlex.split(_readme_recipe(r"blobflow paraview --launch \[FILE \.\.\.\]"))
+    assert recipe[-2:] == ["[FILE", "...]"]
+    blobflow = Path(sys.executable).with_name("blobflow")
+    command = [str(blobflow), *recipe[1:-2], str(series), str(series.with_name(
+        "particles.vtp.series"))]
+    env = _environment(tmp_path)
+    if "PYTHONPATH" in os.environ:  # the worktree's blobflow, as the tests import it
+        env["PYTHONPATH"] = os.environ["PYTHONPATH"]
+    master, process = _in_terminal([XVFB_RUN, "-a", *command], env, tmp_path)
+    try:
+        text = _terminal_output(master, process, lambda text: text.count("blobflow: opened") == 2)
+    finally:
+        os.killpg(process.pid, signal.SIGTERM)  # the GUI stays open: close it
+        process.wait(timeout=60)
+    loaded = LOADED.search(text)
+    assert loaded and Path(loaded.group(1)) == PLUGIN, text[-2000:]
+    opened = [l.split("blobflow: opened ", 1)[1].strip() for l in text.splitlines()
+              if "blobflow: opened " in l]
+    assert opened == [str(series), str(series.with_name("particles.vtp.series"))], text[-2000:]
+    assert text.index("loaded the ParaView plugin") < text.index("blobflow: opened")

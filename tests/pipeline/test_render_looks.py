@@ -310,3 +310,46 @@ def test_flat_faces_of_a_liquid_surface_are_shaded_flat(tmp_path):
             lum = _sample(image, renderer.pixels_of(points))
             assert np.ptp(lum) < 10, (name, np.ptp(lum))  # averaged normals: 55 to 127
     assert {f: f.read_bytes() for f in sorted(tmp_path.rglob("*")) if f.is_file()} == written
+
+
+def test_a_liquid_surface_is_drawn_as_water_whatever_its_series_is_called(tmp_path):
+    from pipeline import looks
+    from pipeline.surface import reconstruct
+
+    x = (np.mgrid[0:8, 0:8, 0:8].reshape(3, -1).T + 0.5) * 0.02
+    options = dict(feature_smoothing=0, smooth_iterations=0, attributes=())
+    liquid = reconstruct(x, 0.01, liquid=True, **options)
+    other = reconstruct(x, 0.01, **options)  # a point cloud's surface
+    untagged = liquid.copy()  # as written before the tag existed
+    untagged.field_data.remove("blobflow_kind")
+    cases = [("smooth", liquid, "water"), ("surface_smooth", liquid, "water"),
+             ("surface", other, "solid"), ("surface", untagged, "water"),
+             ("smooth", untagged, "solid")]
+    for k, (name, data, look) in enumerate(cases):
+        path = _write(tmp_path / str(k) / f"{name}.pvd", [data, data.scale(1.2)])
+        with Renderer(path, size=SIZE, frames=[0], colliders=None, floor=False) as renderer:
+            layer = renderer.layers[0]
+            assert layer.kind == look, (name, look)
+            prop = layer.actor.GetProperty()
+            colour = looks.WATER if look == "water" else looks.SOLID
+            np.testing.assert_allclose(prop.GetColor(), pv.Color(colour).float_rgb)
+            assert prop.GetSpecular() == looks.MATERIALS[look]["specular"]
+            assert prop.GetSpecularPower() == looks.MATERIALS[look]["specular_power"]
+        # a liquid's surface alone decides the most interesting frame: its largest area
+        expected = (1, "largest surface area") if look == "water" else (1, "last frame")
+        assert interesting_frame(path) == expected
+
+
+def test_smoke_hides_any_surface_contoured_around_its_particles(tmp_path):
+    from pipeline.surface import reconstruct
+
+    rng = np.random.default_rng(0)
+    smoke = pv.PolyData(rng.uniform(0.0, 0.2, (300, 3)))
+    smoke.point_data["age"] = rng.uniform(0.0, 1.0, 300)
+    surface = reconstruct(smoke, 0.03, anisotropic=False, feature_smoothing=0,
+                          smooth_iterations=0, attributes=())  # tagged particle_surface
+    assert surface.n_cells > 0
+    particles = _write(tmp_path / "particles.pvd", [smoke, smoke])
+    contoured = _write(tmp_path / "smooth.pvd", [surface, surface])
+    with Renderer([particles, contoured], size=SIZE, frames=[0], colliders=None) as renderer:
+        assert [(l.name, l.kind) for l in renderer.layers] == [("particles", "smoke")]
