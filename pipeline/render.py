@@ -30,6 +30,8 @@ from .series import read_collection, read_frame
 if TYPE_CHECKING:
     from typing import Any, Iterable, Sequence
 
+    from numpy.typing import ArrayLike
+
     SeriesPaths = str | Path | Sequence[str | Path]  # one series or several
 
 __all__ = ["Renderer", "RenderUnavailableError", "turntable", "timelapse", "write_movie",
@@ -203,7 +205,7 @@ def check_fps(fps: float) -> float:
     return check_range("fps", fps, *FPS_RANGE)
 
 
-def gif_limit(size) -> tuple[int, str]:
+def gif_limit(size: tuple[int, int]) -> tuple[int, str]:
     """The most images a GIF of ``size`` (width, height) may have, and why: it holds them all
     in memory until it is written, so only as many as fit
     :func:`filters.memory.memory_limit`."""
@@ -233,7 +235,7 @@ def max_views(size: tuple[int, int], out: str | Path) -> tuple[int, str]:
     return limit, why
 
 
-def check_movie_length(count: int, size, out, *, turntable: bool) -> None:
+def check_movie_length(count: int, size: tuple[int, int], out: str | Path, *, turntable: bool) -> None:
     """Refuse, before drawing, a movie of more images than :func:`max_views` (a turntable)
     or :func:`gif_limit` (a GIF) allow; the message states the limit and why."""
     if turntable:
@@ -247,7 +249,7 @@ def check_movie_length(count: int, size, out, *, turntable: bool) -> None:
         raise RenderError(f"{count} {what} are more than this movie can have: {why}")
 
 
-def default_fps(times) -> float:
+def default_fps(times: ArrayLike) -> float:
     """The frame rate that plays ``times`` (s) in real time, within :data:`FPS_RANGE`."""
     times = np.asarray(times, dtype=np.float64)
     if len(times) < 2:
