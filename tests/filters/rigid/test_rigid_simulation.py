@@ -58,19 +58,21 @@ def test_a_restored_state_continues_bit_for_bit():
     _assert_same_state(sim.state, reference)
 
 
-def test_a_frame_written_to_disk_resumes_the_run_bit_for_bit(tmp_path):
+def test_a_checkpoint_written_to_disk_resumes_the_run_bit_for_bit(tmp_path):
     from pipeline import SimulationSource
-    from pipeline.convert import state_from_dataset
+    from pipeline.checkpoint import Checkpoint, read_checkpoint, write_checkpoint
     from pipeline.series import read_frame, write_frame
 
     source = SimulationSource(_scene(), fps=30, duration=0.5)
     source.UpdateTimeStep(0.3)
     path = write_frame(source.GetOutputDataObject(0), tmp_path / "rigid_0.vtp")
+    saved = write_checkpoint(tmp_path / "rigid.checkpoint.npz",
+                             Checkpoint(source.simulation.get_state(), 9, 0.3, {}))
     source.UpdateTimeStep(0.5)
     reference = source.simulation.get_state()
     data = read_frame(path)
     other = _scene()
-    other.set_state(state_from_dataset(data))
+    other.set_state(read_checkpoint(saved).state)
     assert other.state.time == pytest.approx(0.3)
     other.advance_to(0.5)
     _assert_same_state(other.state, reference)
