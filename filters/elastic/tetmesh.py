@@ -28,7 +28,8 @@ import numpy as np
 
 from ..simplices import CORNER_OFFSETS, KUHN_TETS, kuhn_locate
 from ..validation import check_finite_vector, check_int, check_range
-from .topology import Embedding, check_triangles
+from .surfaces import check_triangles
+from .topology import Embedding
 from .voxelize import voxelize_mesh
 
 __all__ = ["TetMesh", "box_tets", "lattice_tets", "tets_from_mesh", "tet_volumes"]
