@@ -27,10 +27,14 @@ vocabulary, plus ``"rk2"`` and ``"rk4"``)
 
       E(dx) = |dx - h v|_M^2 / (2 h^2) + U(x + dx) + dx^T C dx / (2 h)
 
-  whose minimiser is the backward Euler step; every accepted iterate lowers ``E``, so the step
-  cannot gain energy.  Axial damping directions are frozen at the start of the step so that the
-  damping term is a true (quadratic) dissipation potential.  The robust default.
-  :func:`backward_euler` solves inexactly with an Eisenstat & Walker (1996) forcing sequence.
+  whose minimiser is the backward Euler step, which for convex potentials does not gain
+  energy; every accepted iterate lowers ``E``, and Newton stops on a tolerance both absolute
+  and relative to the step's velocity change, so the result is that step to a fraction of the
+  scheme's own change at any ``h`` (first order down to ``h = T/3200`` on an oscillator, the
+  energy of exact backward Euler to 1 % on a stiff pendulum).  Axial damping directions are
+  frozen at the start of the step so that the damping term is a true (quadratic) dissipation
+  potential.  The robust default.  The linear solves are inexact, with an Eisenstat & Walker
+  (1996) forcing sequence.
 * :func:`implicit_advection` -- the first-order form for particles advected by a velocity field
   ``dx/dt = v(x)``: ``(I - h dv/dx) dx = h v(x^n)`` (one linearised backward Euler step).
 

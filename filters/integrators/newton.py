@@ -12,11 +12,50 @@ from ..linalg.cg import vdot
 from ..validation import check_int, check_range
 from .common import StepInfo, check_h, linear_solver, store_warm_start, warm_start
 
-__all__ = ["backward_euler"]
+__all__ = ["backward_euler", "NEWTON_RTOL"]
 
-#: Loosest relative PCG tolerance of a Newton solve as a multiple of ``newton_tol / |d_prev|``
-#: (see :func:`backward_euler`).
+#: Loosest relative PCG tolerance of a Newton solve as a multiple of ``tol_k / |d_prev|``, with
+#: ``tol_k`` the step's stopping tolerance (see :func:`backward_euler`).
 _STEP_FORCING = 0.3
+
+#: Default relative Newton tolerance: the Newton step must fall below this fraction of the
+#: step's velocity change ``max |dx / h - v|``.
+NEWTON_RTOL = 1e-2
+
+#: Absolute floor (m/s) of the relative tolerance, as a fraction of ``newton_tol``: a step that
+#: changes no velocity (a body at rest) converges once the Newton step is below it.
+_FLOOR = 1e-6
+
+
+@njit(cache=True)
+def _norm(g):
+    """The 2-norm of an (N, 3) array, scaled by its largest entry so that no square underflows
+    or overflows (a state of 1e-200 has a norm of 1e-200, not 0)."""
+    top = 0.0
+    for i in range(g.shape[0]):
+        for k in range(3):
+            top = max(top, abs(g[i, k]))
+    if top == 0.0 or not math.isfinite(top):
+        return top
+    acc = 0.0
+    for i in range(g.shape[0]):
+        for k in range(3):
+            t = g[i, k] / top
+            acc += t * t
+    return top * math.sqrt(acc)
+
+
+@njit(cache=True)
+def _max_abs_diff(dx, v, h):
+    """``max |dx / h - v|`` (m/s) over all entries of two (N, 3) arrays: the velocity change of
+    the step ``dx`` from velocities ``v``."""
+    acc = 0.0
+    for i in range(dx.shape[0]):
+        for k in range(3):
+            t = abs(dx[i, k] / h - v[i, k])
+            if t > acc:
+                acc = t
+    return acc
 
 
 @njit(cache=True)
@@ -30,8 +69,8 @@ def _incremental_potential_parts(dx, v, masses, h):
     return 0.5 * acc / (h * h)
 
 
-def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newton=20,
-                   tol=1e-3, max_iter=1000, callback=None, preconditioner=None,
+def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, newton_rtol=NEWTON_RTOL,
+                   max_newton=20, tol=1e-3, max_iter=1000, callback=None, preconditioner=None,
                    forcing=0.1, extrapolate=False, omega=None, contact=None):
     """Backward Euler by Newton iterations with a line search on the incremental potential.
 
@@ -40,24 +79,33 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     ``C`` the damping matrix with directions frozen at the start of the step.  Newton directions
     solve ``(M/h^2 + K(x + dx) + C/h) d = -grad E`` with ``K`` made definite, so every ``d`` is a
     descent direction; a backtracking (Armijo) line search accepts only decreases of ``E``.
-    Then ``v = dx / h``, ``x += dx``.
+    Then ``v = dx / h``, ``x += dx``.  Newton stops on a tolerance that is absolute *and*
+    relative to the step's own velocity change, so the result is the backward Euler step to a
+    fraction of the scheme's own change per step, at any ``h``: first order, and, since the
+    exact minimiser of ``E`` does not gain energy for convex potentials (Gast et al. 2015), an
+    energy within that tolerance of exact backward Euler's.
 
     Parameters
     ----------
     system, state, h
-        As in :func:`forward_euler`.
+        As in :func:`filters.integrators.euler`.
     solver : {"auto", "pcg", "direct"} or LinearSolver
         Linear solver for the Newton directions (see :mod:`filters.linalg.solver`); a
         :class:`LinearSolver` object keeps its scratch arrays between steps.
     newton_tol : float
-        Stop when ``max |d| / h`` (m/s) falls below this (1 mm/s by default: well below what
-        an animation shows, and 2x fewer Newton iterations than 1e-5 on the benchmark cloth)
-        -- with contacts, when also the Newton decrement ``-g . d`` is below the kinetic
-        energy ``M newton_tol^2`` of the whole system moving at that speed (J), since a stiff
-        barrier can hold much energy in a small step --,
-        or when two full steps converge quadratically (``|d_k| < |d_{k-1}| / 4``) and the
-        next step, estimated as ``|d_k|^2 / |d_{k-1}|``, would be below ``newton_tol / 2``
-        (3.17 -> 2.75 Newton iterations per step on the 64x64 benchmark cloth).
+        Absolute Newton tolerance (m/s), > 0: Newton stops when the full Newton step
+        ``max |d| / h`` is below ``tol_k = min(newton_tol, newton_rtol max |dx / h - v|)``
+        (the second term the step's velocity change at the current iterate, floored at
+        ``1e-6 newton_tol`` for a step that changes nothing) -- with contacts, when also the
+        Newton decrement ``-g . d`` is below the kinetic energy ``M newton_tol^2`` of the whole
+        system moving at that speed (J), since a stiff barrier can hold much energy in a small
+        step --, or when two full steps converge quadratically (``|d_k| < |d_{k-1}| / 4``) and
+        the next step, estimated as ``|d_k|^2 / |d_{k-1}|``, would be below ``tol_k / 2``.
+    newton_rtol : float
+        Relative Newton tolerance, in (0, 1): the Newton step must be below this fraction of the
+        step's velocity change.  An absolute tolerance alone is met after one iteration once
+        ``h`` is small (the whole velocity change falls below it) and turns backward Euler into
+        a different, inexact scheme (with the loose first solve, one that gains energy).
     max_newton : int
         Newton iteration limit.
     tol, max_iter : float, int
@@ -68,21 +116,21 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     preconditioner : {"ssor", "block_jacobi", "sgs"}, optional
         Preconditioner of the matrix-free PCG (only with a solver given by name): block
         symmetric successive over-relaxation with Eisenstat's trick (the default: on the 64x64
-        benchmark cloth 3.3x fewer iterations than block Jacobi at ~2x the cost per
-        iteration, 10.5 instead of 16.0 ms per step), per-particle 3x3 block Jacobi, or block
-        symmetric Gauss-Seidel applied separately from the product (2.4x fewer iterations than
-        block Jacobi but ~2.5x the cost per iteration); see ``benchmarks/results/springs.json``.
+        benchmark cloth about 3x fewer iterations than block Jacobi at ~2x the cost per
+        iteration), per-particle 3x3 block Jacobi, or block symmetric Gauss-Seidel applied
+        separately from the product; see ``benchmarks/results/springs.json``.
     forcing : float or None
         Largest relative PCG tolerance of the inexact Newton iterations: the first solve uses
         ``forcing``, later ones the Eisenstat & Walker (1996, "Choosing the forcing terms in an
         inexact Newton method", SIAM J. Sci. Comput.) choice 2,
         ``eta_k = 0.9 (|g_k| / |g_{k-1}|)^2`` (safeguarded), clipped to ``[tol, forcing]``.
         Far from the solution the solve is loose, near it as tight as ``tol`` -- but never
-        tighter than ``0.3 newton_tol / |d_prev|`` (``|d_prev|`` the previous Newton step,
-        ``max |d| / h``): once the steps approach ``newton_tol`` the last direction only has to
-        be accurate to a fraction of it (Newton steps shrink).  This floor cut the PCG
-        iterations of the 64x64 benchmark cloth from 28 to 21 per step with the same Newton
-        iterations.  ``None``: every solve to ``tol`` (the fixed-tolerance behaviour).
+        tighter than ``0.3 tol_k / |d_prev|`` (``|d_prev|`` the previous Newton step,
+        ``max |d| / h``): once the steps approach ``tol_k`` the last direction only has to be
+        accurate to a fraction of it (Newton steps shrink).  The loose solves are safe because
+        the stopping test is relative: a direction (or the warm start of PCG, accepted when its
+        true residual is below ``eta_k``) that is 10 % off leaves a next Newton step of ~10 %
+        of this one, and Newton goes on.  ``None``: every solve to ``tol``.
     extrapolate : bool
         Also try the start ``dx = h (v + dv_prev)`` (the previous step's velocity change, kept in
         ``state.extra["newton_dv"]``) and keep it if it has the lowest incremental potential.
@@ -104,6 +152,7 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     """
     h = check_h(h)
     check_range("newton_tol", newton_tol, 0.0, math.inf, low_inclusive=False)
+    check_range("newton_rtol", newton_rtol, 0.0, 1.0, low_inclusive=False, high_inclusive=False)
     if forcing is not None:
         check_range("forcing", forcing, 0.0, 1.0, low_inclusive=False, high_inclusive=False)
     check_int("max_newton", max_newton, 1)
@@ -115,6 +164,7 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     m = system.masses
     pinned = system.pinned
     free = ~pinned
+    floor = _FLOOR * newton_tol
 
     def potential(dx):
         e = _incremental_potential_parts(dx, v_free, m, h)
@@ -130,6 +180,10 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         g -= system.damping_forces(x0, dx) / h
         g[pinned] = 0.0
         return g
+
+    def tolerance(dx):
+        """The stopping tolerance (m/s) at the iterate ``dx``."""
+        return min(newton_tol, max(newton_rtol * _max_abs_diff(dx, v_free, h), floor))
 
     v_free = v.copy()
     v_free[pinned] = 0.0
@@ -178,7 +232,7 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
     warm = warm_start(state, "newton_warm", 3 * n)
     first_direction = None
     eta = tol if forcing is None else max(tol, forcing)
-    gnorm_prev = None
+    gnorm_prev = 0.0
     prev_step = 0.0
     full_before = False
     for it in range(max_newton):
@@ -186,17 +240,20 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         if contact is not None:
             contact.derivatives(x0, dx, g, blocks)
             g[pinned] = 0.0
-        gnorm = math.sqrt(vdot(g, g))
-        if forcing is not None and gnorm_prev is not None:
+        gnorm = _norm(g)
+        if not gnorm > 0.0:
+            break  # the exact minimiser (a body at rest with nothing acting, or round-off)
+        tol_k = tolerance(dx)
+        if forcing is not None and gnorm_prev > 0.0:
             # Eisenstat & Walker (1996), choice 2 (gamma = 0.9, alpha = 2) with safeguard
             eta_new = 0.9 * (gnorm / gnorm_prev) ** 2
             if 0.9 * eta * eta > 0.1:
                 eta_new = max(eta_new, 0.9 * eta * eta)
             eta = min(max(forcing, tol), max(eta_new, tol))
             if prev_step > 0.0:
-                # Near convergence the step only has to be accurate to a fraction of newton_tol
+                # Near convergence the step only has to be accurate to a fraction of tol_k
                 # (Newton steps shrink, so |d_k| <= |d_{k-1}|): no tighter than that.
-                eta = max(eta, min(forcing, _STEP_FORCING * newton_tol / prev_step))
+                eta = max(eta, min(forcing, _STEP_FORCING * tol_k / prev_step))
         gnorm_prev = gnorm
         d, lin_it, direct = linear.solve(system, x0 + dx, x0, h, -g, warm, eta, max_iter,
                                          diagonal=blocks)
@@ -212,14 +269,23 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         step_norm = float(np.abs(d).max()) / h if d.size else 0.0
         older_step, prev_step = prev_step, step_norm
         info.residual = step_norm
-        if slope >= 0.0:  # not a descent direction (inexact solve): steepest descent instead
+        underflow = slope == 0.0 and step_norm > 0.0
+        if slope > 0.0 or (slope == 0.0 and not underflow):
+            # not a descent direction (inexact solve): steepest descent instead
             d = -g / (m[:, None] / (h * h))
+            d[pinned] = 0.0
             slope = vdot(g, d)
         # with contacts, the longest step that keeps every contact point outside (Li et al.
         # 2020's filtered line search)
         alpha = 1.0 if contact is None else contact.max_step(x0, dx, d)
         accepted = False
-        for _ in range(40 if contact is None else 60):
+        if underflow:
+            # a state so small (~1e-160) that g . d and E underflow to zero: the line search
+            # cannot judge, the direction (a solve at unit scale) is taken as it is
+            trial = dx + alpha * d
+            e_trial = potential(trial)
+            accepted = True
+        for _ in range(0 if underflow else 40 if contact is None else 60):
             trial = dx + alpha * d
             e_trial = potential(trial)
             if e_trial <= e + 1e-4 * alpha * slope:
@@ -232,19 +298,22 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         dx, e = trial, e_trial
         if callback is not None:
             callback(it, step_norm * alpha, e)
+        tol_k = tolerance(dx)
+        small = alpha == 1.0 and step_norm <= tol_k
         if contact is None:
-            if step_norm * alpha < newton_tol:
+            if small:
                 break
-        elif step_norm < newton_tol and -slope < decrement_tol and not gains(dx):
+        elif small and -slope < decrement_tol and not gains(dx):
             # converged: the full step is small, so is the Newton decrement g . H^-1 g (twice
             # the decrease left to the minimum), and the step gains no energy
             break
-        if alpha == 1.0 and full_before and step_norm < 0.25 * older_step and (
-                step_norm * step_norm / older_step < 0.5 * newton_tol) and (
+        if alpha == 1.0 and full_before and older_step > 0.0 and (
+                step_norm < 0.25 * older_step) and (
+                step_norm * step_norm / older_step < 0.5 * tol_k) and (
                 contact is None or not gains(dx)):
             # Quadratic convergence (two full steps, contraction < 1/4): the next step would be
-            # ~ |d_k|^2 / |d_{k-1}|, well below newton_tol (Deuflhard 2004, "Newton methods
-            # for nonlinear problems"): skip the solve that would only confirm it.
+            # ~ |d_k|^2 / |d_{k-1}|, well below tol_k (Deuflhard 2004, "Newton methods for
+            # nonlinear problems"): skip the solve that would only confirm it.
             info.residual = step_norm * step_norm / older_step
             break
         full_before = alpha == 1.0
@@ -269,4 +338,3 @@ def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, max_newt
         v *= scale
     v[pinned] = 0.0
     return info
-

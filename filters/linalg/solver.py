@@ -20,6 +20,7 @@ from ..validation import check_choice, check_range
 from .block_cg import pcg_blocks
 from .cg import pcg
 from .direct import direct_solve
+from .scale import unit_scale
 from .ssor import DEFAULT_OMEGA, SSORWorkspace, pcg_ssor
 
 __all__ = ["SOLVERS", "PRECONDITIONERS", "DEFAULT_OMEGA", "LinearSolver", "pcg_operator",
@@ -67,13 +68,21 @@ def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditione
     x : float64 array shaped like ``b``
     iterations : int
     relative_residual : float
+
+    Notes
+    -----
+    The system is solved at unit scale (:func:`filters.linalg.scale.unit_scale`), so a
+    right-hand side of 1e-200 or of denormals gives its (tiny) solution, and a zero one zero.
     """
     check_choice("preconditioner", preconditioner, PRECONDITIONERS)
     check_range("omega", omega, 0.0, 2.0, low_inclusive=False, high_inclusive=False)
     b = np.ascontiguousarray(b, dtype=np.float64)
     shape = b.shape
-    b3 = b.reshape(-1, 3)
-    x = np.zeros_like(b3) if x0 is None else np.array(x0, dtype=np.float64).reshape(-1, 3)
+    s, bs, xs = unit_scale(b, x0)  # tiny right-hand sides solved at unit scale
+    if s == 0.0:
+        return np.zeros_like(b), 0, 0.0
+    b3 = np.ascontiguousarray(bs.reshape(-1, 3))
+    x = np.zeros_like(b3) if xs is None else np.array(xs, dtype=np.float64).reshape(-1, 3)
     x = np.ascontiguousarray(x)
     if preconditioner == "ssor":
         work = (workspace or SSORWorkspace()).get(operator.diag.shape[0],
@@ -81,10 +90,12 @@ def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditione
         it, res = pcg_ssor(operator.pairs, operator.free, operator.blocks, operator.diag,
                            operator.upper, b3, x, float(tol), int(max_iter), float(omega), work,
                            operator.upper_ordered)
-        return x.reshape(shape), int(it), float(res)
-    it, res = pcg_blocks(operator.pairs, operator.free, operator.blocks, operator.diag,
-                         operator.lower, operator.upper, b3, x, float(tol), int(max_iter),
-                         preconditioner == "sgs")
+    else:
+        it, res = pcg_blocks(operator.pairs, operator.free, operator.blocks, operator.diag,
+                             operator.lower, operator.upper, b3, x, float(tol), int(max_iter),
+                             preconditioner == "sgs")
+    if s != 1.0:
+        x *= s
     return x.reshape(shape), int(it), float(res)
 
 
