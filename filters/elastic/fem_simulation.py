@@ -26,7 +26,7 @@ from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, Conta
 from .fem import FEMSystem, tet_geometry
 from .mass_spring import MassSpringSimulation, check_stepping
 from .materials import material_parameters
-from .tetmesh import TetMesh, tets_from_mesh
+from .tetmesh import TetMesh, tets_from_arrays, tets_from_mesh
 
 __all__ = ["FEMModel", "FEMSimulation", "lumped_masses", "VTK_TETRA"]
 
@@ -213,6 +213,14 @@ class FEMSimulation(MassSpringSimulation):
         ``spacing`` (m) with the mesh embedded (:func:`filters.elastic.tetmesh.tets_from_mesh`);
         ``options`` as for the class."""
         return cls(tets_from_mesh(points, triangles, spacing=spacing), **options)
+
+    @classmethod
+    def from_tets(cls, points, tets, *, name="mesh", **options):
+        """A solid of a user's own tetrahedral mesh, as it is (:func:`filters.elastic.tetmesh.
+        tets_from_arrays`: checked for flat, inverted elements and several bodies); its
+        boundary faces are the surface that is drawn and touches colliders; ``options`` as for
+        the class."""
+        return cls(tets_from_arrays(points, tets, name=name), **options)
 
     # -- protocol ---------------------------------------------------------------------------
     @property

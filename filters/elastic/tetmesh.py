@@ -36,13 +36,14 @@ import numpy as np
 from numba import njit
 
 from ..simplices import CORNER_OFFSETS, KUHN_TETS, kuhn_locate
-from ..validation import check_finite_vector, check_int, check_range
+from ..validation import check_finite_vector, check_int, check_points, check_range
 from .cutcells import tet_fractions
 from .surfaces import check_triangles
 from .topology import Embedding
 from .voxelize import voxelize_mesh
 
-__all__ = ["TetMesh", "box_tets", "lattice_tets", "tets_from_mesh", "tet_volumes"]
+__all__ = ["TetMesh", "box_tets", "lattice_tets", "tets_from_mesh", "tets_from_arrays",
+           "tet_volumes", "OUTWARD_FACES", "MIN_FRACTION"]
 
 
 @dataclass(frozen=True)
@@ -231,3 +232,89 @@ def _mark_cut_cells(pts, tris, origin, spacing, grid):
             for j in range(lo[1], hi[1] + 1):
                 for k in range(lo[2], hi[2] + 1):
                     grid[i, j, k] = True
+
+
+#: The faces of a positively oriented tetrahedron ``(0, 1, 2, 3)``, each ordered so that its
+#: normal points out of it.
+OUTWARD_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]], dtype=np.int64)
+
+
+def tets_from_arrays(points, tets, *, name="mesh"):
+    """A user's tetrahedral mesh, simulated as it is: checked, and its boundary as its surface.
+
+    Parameters
+    ----------
+    points : (N, 3) array_like
+        Node positions (m).
+    tets : (T, 4) int array_like
+        Linear tetrahedra.  All of one orientation: a mesh written with the opposite
+        convention (every tetrahedron negative) is reoriented; a mix means inverted elements.
+    name : str
+        The parameter the mesh came from, for messages.
+
+    Returns
+    -------
+    TetMesh
+        The nodes the tetrahedra use (unused ones dropped, the others renumbered in order),
+        positively oriented tetrahedra, and as ``embedding`` the boundary faces (those of one
+        tetrahedron only), oriented outward, over the boundary nodes (one node each, weight
+        1): the surface that is drawn and touches colliders.  ``volume`` is the tetrahedra's.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``: a shape other than (T, 4), indices out of range, a flat (degenerate)
+        tetrahedron, inverted ones, or several bodies (parts that share no node).
+    """
+    pts = check_points(f"{name} points", points)
+    t = np.asarray(tets)
+    if t.ndim != 2 or t.shape[1] != 4 or t.shape[0] == 0:
+        raise ValueError(f"{name}: tetrahedra must be a non-empty (T, 4) array of node indices, "
+                         f"got shape {t.shape}")
+    if not np.issubdtype(t.dtype, np.integer):
+        raise TypeError(f"{name}: tetrahedra must hold integers, got {t.dtype}")
+    t = t.astype(np.int64)
+    if t.min() < 0 or t.max() >= pts.shape[0]:
+        raise ValueError(f"{name}: tetrahedra must index nodes in [0, {pts.shape[0] - 1}]")
+    used, inverse = np.unique(t.ravel(), return_inverse=True)
+    x = np.ascontiguousarray(pts[used])
+    t = inverse.reshape(-1, 4).astype(np.int64)
+    vol = tet_volumes(x, t)
+    edges = x[t] - x[t[:, :1]]
+    scale = np.abs(edges).max(axis=(1, 2))
+    flat = ~(np.abs(vol) > 1e-9 * scale**3)
+    if flat.any():
+        i = int(np.flatnonzero(flat)[0])
+        raise ValueError(f"{name}: {int(flat.sum())} of {len(t)} tetrahedra are flat "
+                         f"(degenerate; the first, {i}, has volume {vol[i]:.3g} m^3)")
+    negative = vol < 0.0
+    if negative.all():  # the other orientation convention: reorient every one
+        t = t[:, [0, 2, 1, 3]]
+        vol = -vol
+    elif negative.any():
+        i = int(np.flatnonzero(negative)[0])
+        raise ValueError(f"{name}: {int(negative.sum())} of {len(t)} tetrahedra are inverted "
+                         f"(oriented against the rest; the first is {i})")
+    bodies = _count_bodies(t, x.shape[0])
+    if bodies > 1:
+        raise ValueError(f"{name}: the mesh holds {bodies} separate bodies (parts that share no "
+                         "node); give one body per simulation")
+    faces = t[:, OUTWARD_FACES].reshape(-1, 3)
+    key = np.sort(faces, axis=1)
+    _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    boundary = faces[np.sort(first[counts == 1])]
+    nodes, tris = np.unique(boundary.ravel(), return_inverse=True)
+    embedding = Embedding(nodes[:, None].astype(np.int64), np.ones((nodes.size, 1)),
+                          tris.reshape(-1, 3).astype(np.int64), x[nodes].copy())
+    return TetMesh(x, np.ascontiguousarray(t), embedding, float(vol.sum()))
+
+
+def _count_bodies(tets, n):
+    """Number of connected parts of tetrahedra ``tets`` over ``n`` nodes (sharing a node)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    rows = np.repeat(tets[:, 0], 3)
+    cols = tets[:, 1:].ravel()
+    graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    return int(connected_components(graph, directed=False)[0])
