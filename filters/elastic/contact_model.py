@@ -257,6 +257,15 @@ class ContactModel:
         scatter_to_particles(self.nodes, self.weights, self._grad_p, self._hess_p, grad, blocks)
         return float(self._energies.sum())
 
+    def point_hessians(self):
+        """``(nodes (M, K), weights (M, K), hessians (M, 6))`` of the last
+        :meth:`derivatives` call, for the exact blocks ``W^T H W`` of embedded points
+        (:mod:`filters.linalg.coupling`); None for contact points that are the particles
+        themselves, whose diagonal blocks are exact already."""
+        if self.identity:
+            return None
+        return self.nodes, self.weights, self._hess_p
+
     def max_step(self, x0, dx, d):
         """Largest fraction in [0, 1] of the step ``d`` (N, 3) from ``x0 + dx`` that brings no
         contact point closer to a collider than :attr:`KEEP` times its distance (the

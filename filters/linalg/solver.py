@@ -19,6 +19,7 @@ import numpy as np
 from ..validation import check_choice, check_range
 from .block_cg import pcg_blocks
 from .cg import pcg
+from .coupling import add_point_hessians_csr, add_point_hessians_pairs
 from .direct import direct_solve
 from .scale import unit_scale
 from .ssor import DEFAULT_OMEGA, SSORWorkspace, pcg_ssor
@@ -155,20 +156,26 @@ class LinearSolver:
                                  high_inclusive=False)
         self.workspace = SSORWorkspace()
 
-    def operator(self, system, x, xdir, h, diagonal=None):
+    def operator(self, system, x, xdir, h, diagonal=None, points=None):
         """The system matrix at ``(x, xdir, h)``: matrix-free when the method iterates and the
         system has such a form, else the assembled CSR matrix; plus the particle blocks
-        ``diagonal`` (N, 3, 3) when given (rows of pinned particles stay the identity).  A
+        ``diagonal`` (N, 3, 3) when given (rows of pinned particles stay the identity).  With
+        ``points`` = ``(nodes (M, K), weights (M, K), hessians (M, 6))`` of terms on embedded
+        points whose diagonal bound ``diagonal`` is, their exact blocks ``W^T H W`` instead
+        where the matrix's pattern holds them (:mod:`filters.linalg.coupling`).  A
         matrix-free operator's arrays are overwritten by the next call."""
         op = system.implicit_operator(x, xdir, h) if self.method != "direct" else None
         if op is not None:
             if diagonal is not None:
                 op.diag += np.where(system.pinned[:, None, None], 0.0, diagonal)
+                if points is not None:
+                    add_point_hessians_pairs(op, *points)
             return op
         mat = system.system_matrix(x, xdir, h)
-        return mat if diagonal is None else add_block_diagonal(mat, diagonal, system.pinned)
+        return _with_contact(mat, system.pinned, diagonal, points)
 
-    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int, diagonal=None):
+    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int, diagonal=None,
+              points=None):
         """Solve ``(H(x, xdir) + diagonal) d = rhs`` for an
         :class:`~filters.linalg.protocol.ImplicitSystem`.
 
@@ -190,6 +197,9 @@ class LinearSolver:
         diagonal : (N, 3, 3) float64, optional
             Symmetric positive semi-definite blocks added to the particles' diagonal blocks
             (contacts); ignored on pinned particles.
+        points : tuple, optional
+            The embedded points whose bound ``diagonal`` is, for their exact blocks (see
+            :meth:`operator`).
 
         Returns
         -------
@@ -199,16 +209,15 @@ class LinearSolver:
         direct : bool
             Whether a direct solve produced ``d``.
         """
-        op = self.operator(system, x, xdir, h, diagonal)
+        op = self.operator(system, x, xdir, h, diagonal, points)
         if not hasattr(op, "tocsc"):  # matrix-free
             d, it, res = pcg_operator(op, rhs, warm, tol=tol, max_iter=max_iter,
                                       preconditioner=self.preconditioner, omega=self.omega,
                                       workspace=self.workspace)
             if res <= tol or self.method == "pcg":
                 return d.ravel(), it, False
-            mat = system.system_matrix(x, xdir, h)
-            if diagonal is not None:
-                mat = add_block_diagonal(mat, diagonal, system.pinned)
+            mat = _with_contact(system.system_matrix(x, xdir, h), system.pinned, diagonal,
+                                points)
             return direct_solve(mat, rhs.ravel()), it, True
         return solve_linear(op, rhs.ravel(), warm, solver=self.method, tol=tol,
                             max_iter=max_iter)
@@ -217,6 +226,18 @@ class LinearSolver:
         """``H(x, xdir) p`` for ``p`` (N, 3) (no added blocks), shaped like ``p``."""
         op = self.operator(system, x, xdir, h)
         return (op @ np.ascontiguousarray(p).ravel()).reshape(p.shape)
+
+
+def _with_contact(mat, pinned, diagonal, points):
+    """A CSR matrix plus contact blocks: exact ones of ``points`` where its pattern holds
+    them, else the diagonal bound ``diagonal``."""
+    if diagonal is None:
+        return mat
+    if points is not None:
+        exact = add_point_hessians_csr(mat, *points, pinned)
+        if exact is not None:
+            return exact
+    return add_block_diagonal(mat, diagonal, pinned)
 
 
 def add_block_diagonal(matrix, blocks, pinned):

@@ -155,3 +155,43 @@ def test_tiny_and_denormal_states_through_every_linear_solver(scale):
                 assert np.abs(got).max() <= 1e3 * scale * np.abs(exact).max(), name
         zero = solve(np.zeros_like(b), None).ravel()
         assert np.array_equal(zero, np.zeros_like(b)), name
+
+
+def test_embedded_point_hessians_are_added_exactly():
+    # a point inside a cell of a spring lattice, weights w: its Hessian H joins the system as
+    # W^T H W (blocks w_a w_b H), not the diagonal bound sum_k w_k H
+    from filters.elastic.topology import icosphere, jello_from_mesh
+    from filters.linalg.coupling import add_point_hessians_csr, add_point_hessians_pairs
+
+    top = jello_from_mesh(*icosphere(0.1, 1), spacing=0.05)
+    system = SpringSystem(top.springs, top.rest_lengths, 1e3, top.masses)
+    x, h = top.positions, 0.01
+    emb = top.embedding
+    rng = np.random.default_rng(2)
+    m = emb.nodes.shape[0]
+    a = rng.normal(size=(m, 3, 3))
+    full = np.einsum("mij,mkj->mik", a, a)  # SPD per point
+    hess = full[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    n = x.shape[0]
+    w = np.zeros((m, n))
+    np.put_along_axis(w, emb.nodes, emb.weights, axis=1)
+    exact = np.einsum("ma,mij,mb->aibj", w, full, w).reshape(3 * n, 3 * n)
+    base = system.system_matrix(x, x, h).toarray()
+    points = (emb.nodes, emb.weights, np.ascontiguousarray(hess))
+    got = add_point_hessians_csr(system.system_matrix(x, x, h), *points, system.pinned)
+    np.testing.assert_allclose(got.toarray(), base + exact, atol=1e-9 * np.abs(base).max())
+    # the matrix-free operator: the diagonal bound, then the pair corrections
+    bound = np.zeros((n, 3, 3))
+    np.add.at(bound, emb.nodes.ravel(), (emb.weights[:, :, None, None]
+                                         * full[:, None]).reshape(-1, 3, 3))
+    op = system.implicit_operator(x, x, h)
+    op.diag += bound
+    assert add_point_hessians_pairs(op, *points)
+    p = rng.normal(size=(n, 3))
+    np.testing.assert_allclose(op.matvec(p).ravel(), (base + exact) @ p.ravel(),
+                               rtol=1e-9, atol=1e-9 * np.abs(base).max())
+    # a pattern without the pairs: refused, nothing changed
+    cloth, _ = _cloth(4)
+    far = (np.array([[1, 14]]), np.array([[0.5, 0.5]]), np.ones((1, 6)))
+    assert add_point_hessians_csr(cloth.system_matrix(_.positions, _.positions, h), *far,
+                                  cloth.pinned) is None
