@@ -204,3 +204,26 @@ def test_the_scene_takes_a_volume_mesh_and_refuses_what_it_cannot_simulate(tmp_p
         assert what.split()[-1].rstrip("s") in err and "mesh" in err, (what, err)
         assert "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_at_its_defaults_newton_converges_in_contact_and_the_energy_never_exceeds_its_start():
+    # the scene's own drop (0.4 m, E = 5e4 Pa, friction 0.5, h = 1/240 s) through its 2 s:
+    # Newton used to stop at its limit of 10 iterations in 38 % of the steps (44-56 % of those
+    # in contact): the embedded surface's contact Hessian was a diagonal bound (linear
+    # convergence) and the friction's smoothing 4 um wide (slip velocity 1 mm/s times h)
+    flow = load_scene("jello_fem").build()
+    sim = flow.source.simulation
+    limit = sim.newton_options["max_newton"]
+    h = sim.max_dt
+    start = sim.energy()
+    iterations, energies, touching = [], [], []
+    for _ in range(int(round(2.0 / h))):
+        sim.step(h)
+        iterations.append(sim.last_info.newton_iterations)
+        energies.append(sim.energy())
+        touching.append(sim.contact.touching)
+    iterations = np.array(iterations)
+    assert np.mean(iterations >= limit) < 0.05
+    assert max(touching) > 0 and np.mean(np.array(touching) > 0) > 0.5  # it landed and rests
+    assert max(energies) <= start
+    assert energies[-1] < 0.5 * start  # the landing took energy
