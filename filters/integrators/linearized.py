@@ -1,5 +1,6 @@
 """The linearised backward Euler step (Baraff & Witkin 1998): one Newton step of backward Euler,
-with contacts solved exactly on the quadratic model (:func:`filters.contact_solve.linearized_contact`)."""
+with contacts solved exactly on the quadratic model
+(:func:`filters.contact_solve.linearized_contact`)."""
 
 from __future__ import annotations
 
