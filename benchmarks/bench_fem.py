@@ -131,9 +131,9 @@ def implicit(size, steps):
         if name.startswith("fem"):
             row["tets"] = int(sim.system.n_tets)
             row["tets_cut_by_the_surface"] = int(np.sum(sim.system.fractions < 1.0))
-        row["before"] = BEFORE[f"jello_{size}"][name]
         else:
             row["springs"] = int(sim.system.pairs.shape[0])
+        row["before"] = BEFORE[f"jello_{size}"][name]
         out.append(row)
     base = next(r for r in out if r["model"] == "springs")["ms_per_step_median"]
     for row in out:
