@@ -13,8 +13,8 @@ Run (under the project's benchmark lock when the machine is free)::
    defaults (``jello_fem``: stable Neo-Hookean, E = 5e4 Pa, nu = 0.45, Rayleigh beta 0.002 s;
    also the corotated material), against the spring jello (:class:`filters.elastic.
    mass_spring.JelloSimulation`, stiffness 300 N, damping 0.5 N s/m)
-   on the *same lattice* (the spring lattice and the tetrahedra share the voxelisation; the tetrahedra now also fill the cells the surface cuts, each with its volume
-   fraction), steps interleaved between the models.  Reported per model: ms per step
+   on the *same lattice* (the spring lattice and the tetrahedra share the voxelisation; the
+   tetrahedra also fill the cells the surface cuts, each with its volume fraction), steps interleaved between the models.  Reported per model: ms per step
    (median, min), Newton and PCG iterations and direct solves per step, the share of steps
    at the Newton limit; :data:`BEFORE` keeps the numbers of the run before Newton converged
    in contact (diagonal contact Hessian of the embedded surface, slip velocity 1 mm/s).
