@@ -13,9 +13,11 @@ Run (under the project's benchmark lock when the machine is free)::
    defaults (``jello_fem``: stable Neo-Hookean, E = 5e4 Pa, nu = 0.45, Rayleigh beta 0.002 s;
    also the corotated material), against the spring jello (:class:`filters.elastic.
    mass_spring.JelloSimulation`, stiffness 300 N, damping 0.5 N s/m)
-   on the *same lattice* (the same nodes: the spring lattice and the tetrahedra share the
-   voxelisation), steps interleaved between the models.  Reported per model: ms per step
-   (median, min), Newton and PCG iterations and direct solves per step.
+   on the *same lattice* (the spring lattice and the tetrahedra share the voxelisation; the
+   tetrahedra also fill the cells the surface cuts, each with its volume fraction), steps interleaved between the models.  Reported per model: ms per step
+   (median, min), Newton and PCG iterations and direct solves per step, the share of steps
+   at the Newton limit; :data:`BEFORE` keeps the numbers of the run before Newton converged
+   in contact (diagonal contact Hessian of the embedded surface, slip velocity 1 mm/s).
 2. **Contouring**: the 100k and 1M jittered blocks of ``bench_surface.py`` splatted once
    (``splat_sparse``, sph kernel, radius 0.01 m, cell 0.005 m, iso 0.6), then contoured with
    flying edges (``contour_sparse``) and with marching tetrahedra (``contour_grid``),
@@ -54,6 +56,21 @@ RADIUS = 0.15
 H = 1.0 / 240.0
 #: Lattice spacings giving about 10k and 100k tetrahedra in the ball.
 SPACINGS = {"10k": 0.0219, "100k": 0.0095}
+#: The implicit rows of the run before Newton converged in contact (commit d0dafd5's fem.json,
+#: load average 4): every FEM step stopped at the limit of 10 Newton iterations.
+BEFORE = {
+    "jello_10k": {"fem_neo_hookean": dict(ms_per_step_median=197.4, newton_iterations_mean=10.0,
+                                          pcg_iterations_mean=55.15, tets=9876),
+                  "fem_corotated": dict(ms_per_step_median=339.3, newton_iterations_mean=10.0,
+                                        pcg_iterations_mean=67.65, tets=9876),
+                  "springs": dict(ms_per_step_median=18.69, newton_iterations_mean=6.15,
+                                  pcg_iterations_mean=24.65)},
+    "jello_100k": {"fem_neo_hookean": dict(ms_per_step_median=2430.0, newton_iterations_mean=10.0,
+                                           tets=100800),
+                   "fem_corotated": dict(ms_per_step_median=3710.0, newton_iterations_mean=10.0,
+                                         tets=100800),
+                   "springs": dict(ms_per_step_median=310.0, newton_iterations_mean=6.8)},
+}
 
 
 def _mesh():
@@ -98,22 +115,30 @@ def implicit(size, steps):
     out = []
     for name, r in rows.items():
         sim = models[name]
+        limit = sim.newton_options["max_newton"]
         row = dict(case=f"jello_{size}", model=name, spacing_m=spacing,
                    nodes=int(sim.state.positions.shape[0]), steps=steps, h=H,
                    ms_per_step_median=1e3 * float(np.median(r["times"])),
                    ms_per_step_min=1e3 * float(np.min(r["times"])),
                    newton_iterations_mean=float(np.mean(r["newton"])),
+                   newton_iterations_max=int(np.max(r["newton"])),
+                   newton_limit=int(limit),
+                   share_of_steps_at_newton_limit=float(np.mean(np.array(r["newton"]) >= limit)),
+                   slip_velocity_m_per_s=float(sim.contact.slip_velocity),
                    pcg_iterations_mean=float(np.mean(r["pcg"])),
                    direct_solves_mean=float(np.mean(r["direct"])))
         if name.startswith("fem"):
             row["tets"] = int(sim.system.n_tets)
+            row["tets_cut_by_the_surface"] = int(np.sum(sim.system.fractions < 1.0))
         else:
             row["springs"] = int(sim.system.pairs.shape[0])
+        row["before"] = BEFORE[f"jello_{size}"][name]
         out.append(row)
     base = next(r for r in out if r["model"] == "springs")["ms_per_step_median"]
     for row in out:
         row["time_vs_springs"] = row["ms_per_step_median"] / base
-    assert fem.state.positions.shape[0] == models["springs"].state.positions.shape[0]
+    # the same lattice: the FEM mesh has the spring lattice's cells plus those the surface cuts
+    assert fem.state.positions.shape[0] >= 0.8 * models["springs"].state.positions.shape[0]
     return out
 
 

@@ -11,6 +11,7 @@ from filters.validation import check_choice, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.embedding import EmbeddedSurface, read_closed_mesh
 from pipeline.scene import Scene
+from pipeline.volume_mesh import read_volume_mesh
 
 SCENE_FPS = 30.0
 SCENE_DURATION = 2.0
@@ -35,14 +36,18 @@ def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing:
     Parameters
     ----------
     mesh : str
-        Path of a closed surface mesh readable by PyVista (any format); empty for an icosphere
-        of ``radius``.  It is translated so that its lowest point is at ``height``.
+        Path of a closed surface mesh readable by PyVista (any format), cut into tetrahedra on
+        a lattice of ``spacing``; or of a volume mesh of linear tetrahedra (Gmsh ``.msh``,
+        Medit ``.mesh``, Abaqus ``.inp``, VTU, ... read through meshio), simulated as it is,
+        its boundary faces drawn and touching the floor; empty for an icosphere of
+        ``radius``.  It is translated so that its lowest point is at ``height``.
     radius : float
         Radius of the default icosphere (m), > 0.
     height : float
         Initial height of the mesh's lowest point above the floor (m), >= 0.
     spacing : float
-        Edge of the lattice cells cut into six tetrahedra each (m), > 0.
+        Edge of the lattice cells cut into six tetrahedra each (m), > 0 (unused for a volume
+        mesh).
     material : str
         ``neo_hookean`` (Smith, de Goes & Kim 2018) or ``corotated`` (Müller & Gross 2004).
     youngs_modulus : float
@@ -62,7 +67,10 @@ def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing:
     """
     import numpy as np
 
-    if mesh:
+    volume = read_volume_mesh(mesh) if mesh else None
+    if volume is not None:
+        points, tets = volume
+    elif mesh:
         points, triangles = read_closed_mesh(mesh)
     else:
         points, triangles = icosphere(check_range("radius", radius, 0.0, low_inclusive=False), 3)
@@ -71,10 +79,13 @@ def build(*, mesh: str = "", radius: float = 0.15, height: float = 0.4, spacing:
     points = points - [0.0, 0.0, points[:, 2].min() - height]
     ground = Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
     floor = Colliders(friction=friction).add(ground)
-    sim = FEMSimulation.from_mesh(points, triangles, spacing=spacing, material=material,
-                                  youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
-                                  density=density, stiffness_damping=damping, colliders=floor,
-                                  max_dt=max_dt)
+    options = dict(material=material, youngs_modulus=youngs_modulus,
+                   poisson_ratio=poisson_ratio, density=density, stiffness_damping=damping,
+                   colliders=floor, max_dt=max_dt)
+    if volume is not None:
+        sim = FEMSimulation.from_tets(points, tets, name="mesh", **options)
+    else:
+        sim = FEMSimulation.from_mesh(points, triangles, spacing=spacing, **options)
     sim.state.velocities[:] = np.asarray(velocity, dtype=np.float64)
     # the renders draw the embedded mesh; the tetrahedra are on disk for ParaView
     flow = Flow(SimulationSource(sim, fps=SCENE_FPS, duration=SCENE_DURATION), name="tets",

@@ -76,3 +76,22 @@ def test_filters_import_only_public_names_of_other_modules():
             if private:
                 found.append(f"{path.relative_to(ROOT)}:{line} {module} {private}")
     assert found == []
+
+
+def test_no_two_modules_of_filters_import_each_other():
+    # DESIGN.md: "no two modules importing each other" (filters/elastic/topology.py and
+    # voxelize.py did); a package's __init__ re-exporting its modules does not count
+    graph = {}
+    for package in ("filters",):
+        for path in _modules(package):
+            if path.name == "__init__.py":
+                continue
+            name = _module_name(path)
+            deps = set()
+            for _, module, names in _imports(path):
+                deps.add(module)
+                deps.update(f"{module}.{n}" for n in names)
+            graph[name] = deps
+    cycles = sorted(f"{a} <-> {b}" for a in graph for b in graph[a]
+                    if b in graph and a < b and a in graph[b])
+    assert cycles == []

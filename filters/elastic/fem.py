@@ -200,6 +200,11 @@ class FEMSystem(ImplicitSystem):
         Acceleration (m/s^2).
     pinned : (N,) bool array_like, optional
         Nodes held fixed.
+    fractions : (T,) array_like, optional
+        Volume fraction in (0, 1] of every tetrahedron filled by the solid (a lattice cut by a
+        surface, :attr:`filters.elastic.tetmesh.TetMesh.fractions`): it scales the element's
+        volume ``W``, so its energy, forces and stiffness (the finite cell method, Parvizian,
+        Duster & Rank 2007); default 1.
 
     Contacts are not part of the system: the schemes of :mod:`filters.integrators` add them
     (``contact=``, :class:`filters.elastic.contact_model.ContactModel`).
@@ -207,7 +212,7 @@ class FEMSystem(ImplicitSystem):
 
     def __init__(self, rest_positions, tets, masses, *, youngs_modulus, poisson_ratio,
                  material="neo_hookean", mass_damping=0.0, stiffness_damping=0.0,
-                 gravity=(0.0, 0.0, -9.81), pinned=None):
+                 gravity=(0.0, 0.0, -9.81), pinned=None, fractions=None):
         rest = check_points("rest_positions", rest_positions)
         n = rest.shape[0]
         masses = np.ascontiguousarray(masses, dtype=np.float64)
@@ -222,6 +227,14 @@ class FEMSystem(ImplicitSystem):
         self.youngs_modulus = float(youngs_modulus)
         self.poisson_ratio = float(poisson_ratio)
         self.grads, self.volumes = tet_geometry(rest, self.tets)
+        self.fractions = np.ones(self.tets.shape[0])
+        if fractions is not None:
+            f = np.ascontiguousarray(fractions, dtype=np.float64)
+            if f.shape != self.fractions.shape or not np.all((f > 0.0) & (f <= 1.0)):
+                raise ValueError(f"fractions must be a ({self.tets.shape[0]},) array of volume "
+                                 "fractions in (0, 1]")
+            self.fractions = f
+            self.volumes = np.ascontiguousarray(self.volumes * f)
         self.masses = masses
         self.mass_damping = check_range("mass_damping", mass_damping, 0.0)
         self.stiffness_damping = check_range("stiffness_damping", stiffness_damping, 0.0)
@@ -286,12 +299,13 @@ class FEMSystem(ImplicitSystem):
         return out / self.volumes
 
     def volume(self, x) -> float:
-        """Signed volume (m^3) of the tetrahedra at ``x``."""
+        """Signed volume (m^3) of the solid at ``x``: every tetrahedron's times its volume
+        fraction."""
         t = self.tets
         e1 = x[t[:, 1]] - x[t[:, 0]]
         e2 = x[t[:, 2]] - x[t[:, 0]]
         e3 = x[t[:, 3]] - x[t[:, 0]]
-        return float(np.einsum("ij,ij->i", e1, np.cross(e2, e3)).sum() / 6.0)
+        return float((np.einsum("ij,ij->i", e1, np.cross(e2, e3)) * self.fractions).sum() / 6.0)
 
     def _stiffness(self, x, data):
         """Assemble the definite stiffness at ``x`` into ``data`` (the pattern's CSR data)."""

@@ -26,7 +26,7 @@ from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, Conta
 from .fem import FEMSystem, tet_geometry
 from .mass_spring import MassSpringSimulation, check_stepping
 from .materials import material_parameters
-from .tetmesh import TetMesh, tets_from_mesh
+from .tetmesh import TetMesh, tets_from_arrays, tets_from_mesh
 
 __all__ = ["FEMModel", "FEMSimulation", "lumped_masses", "VTK_TETRA"]
 
@@ -35,11 +35,14 @@ VTK_TETRA = 10
 
 
 def lumped_masses(mesh: TetMesh, density: float) -> np.ndarray:
-    """Lumped node masses (kg), (N,): a quarter of every tetrahedron's mass ``density W`` to
-    each of its nodes, scaled so that the total is ``density * mesh.volume`` (the embedded
-    surface's volume, for a lattice that covers slightly more than the surface)."""
+    """Lumped node masses (kg), (N,): a quarter of every tetrahedron's mass ``density phi W``
+    (``phi`` its volume fraction, :attr:`TetMesh.fractions`) to each of its nodes, scaled so
+    that the total is ``density * mesh.volume`` (the embedded surface's volume, which the
+    fractions add up to, to their floor)."""
     density = check_range("density", density, 0.0, math.inf, low_inclusive=False)
     _, volumes = tet_geometry(mesh.positions, mesh.tets)
+    if mesh.fractions is not None:
+        volumes = volumes * mesh.fractions
     masses = np.bincount(mesh.tets.ravel(), weights=np.repeat(volumes / 4.0, 4),
                          minlength=mesh.positions.shape[0])
     if np.any(masses <= 0.0):
@@ -188,7 +191,7 @@ class FEMSimulation(MassSpringSimulation):
                                 youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
                                 material=material, mass_damping=mass_damping,
                                 stiffness_damping=stiffness_damping, gravity=gravity,
-                                pinned=mask)
+                                pinned=mask, fractions=mesh.fractions)
         self.colliders = colliders
         self.contact = None
         if colliders is not None:
@@ -211,15 +214,25 @@ class FEMSimulation(MassSpringSimulation):
         ``options`` as for the class."""
         return cls(tets_from_mesh(points, triangles, spacing=spacing), **options)
 
+    @classmethod
+    def from_tets(cls, points, tets, *, name="mesh", **options):
+        """A solid of a user's own tetrahedral mesh, as it is (:func:`filters.elastic.tetmesh.
+        tets_from_arrays`: checked for flat, inverted elements and several bodies); its
+        boundary faces are the surface that is drawn and touches colliders; ``options`` as for
+        the class."""
+        return cls(tets_from_arrays(points, tets, name=name), **options)
+
     # -- protocol ---------------------------------------------------------------------------
     @property
     def output_spec(self) -> OutputSpec:
         return OutputSpec(point_arrays=(("velocity", 3), ("id", 1)), topology="cells",
-                          fixed_topology=True, cell_arrays=(("strain_energy_density", 1),))
+                          fixed_topology=True, cell_arrays=(("strain_energy_density", 1),
+                                                            ("volume_fraction", 1)))
 
     def frame(self) -> Frame:
         """The tetrahedra at the current state: node positions, ``velocity`` and ``id`` per
-        node, ``strain_energy_density`` (J/m^3) per tetrahedron, the energy account
+        node, ``strain_energy_density`` (J/m^3) and ``volume_fraction`` (the part of it the
+        solid fills) per tetrahedron, the energy account
         (:meth:`energies`) as field data."""
         s = self.state
         tets = self.model.mesh.tets
@@ -230,7 +243,8 @@ class FEMSimulation(MassSpringSimulation):
                      connectivity=(offsets, tets.ravel().copy()),
                      cell_types=np.full(tets.shape[0], VTK_TETRA, dtype=np.uint8),
                      cell_data={"strain_energy_density":
-                                self.system.energy_density(s.positions)},
+                                self.system.energy_density(s.positions),
+                                "volume_fraction": self.system.fractions.copy()},
                      field_data=self.energies().field_data())
 
     # -- diagnostics ------------------------------------------------------------------------
@@ -242,5 +256,6 @@ class FEMSimulation(MassSpringSimulation):
         return emb.points(self.state.positions)
 
     def volume(self) -> float:
-        """Volume (m^3) of the tetrahedra in the current state."""
+        """Volume (m^3) of the solid in the current state (the tetrahedra's, each times its
+        volume fraction)."""
         return self.system.volume(self.state.positions)

@@ -276,6 +276,12 @@ class MassSpringSimulation(Simulation):
                     self.instability_hint)
 
     # -- diagnostics ------------------------------------------------------------------------
+    @property
+    def newton_options(self) -> dict:
+        """The Newton options of the ``"backward_euler"`` steps: ``newton_tol`` (m/s) and
+        ``max_newton`` (a copy)."""
+        return dict(self._newton)
+
     def energies(self) -> EnergyAccount:
         """The energy account (J) of the current state: kinetic, gravitational, elastic and
         contact energies (:class:`filters.elastic.energy.EnergyAccount`)."""

@@ -25,6 +25,8 @@ import numpy as np
 
 from ..memory import check_memory
 from ..validation import check_finite_vector, check_int, check_points, check_range
+from .surfaces import BYTES_PER_NODE, check_triangles, mesh_volume
+from .voxelize import voxelize_mesh
 
 __all__ = [
     "STRETCH",
@@ -43,10 +45,6 @@ __all__ = [
 
 STRETCH, SHEAR, BEND = 0, 1, 2
 
-#: Memory per particle of a spring simulation (bytes), for the up-front check: measured 1.9 KiB
-#: per node on 325,000 hair nodes (positions, springs, the implicit solver's blocks, one frame
-#: and its XDMF export), rounded up.
-BYTES_PER_NODE = 2048
 
 
 @dataclass(frozen=True)
@@ -303,28 +301,6 @@ def cloth_grid(nx, ny, *, size=(1.0, 1.0), origin=(0.0, 0.0, 0.0), plane="xy",
                           offsets, indices)
 
 
-def check_triangles(name, triangles, n_points, *, allow_empty=False, allow_degenerate=False):
-    """Return ``triangles`` as a (T, 3) int64 array indexing ``n_points`` points, or raise.
-
-    ``allow_empty`` accepts T = 0 (an empty surface); ``allow_degenerate`` accepts triangles
-    with a repeated vertex (marching cubes can produce them)."""
-    tris = np.asarray(triangles)
-    if tris.ndim != 2 or tris.shape[1] != 3 or (tris.shape[0] == 0 and not allow_empty):
-        raise ValueError(f"{name} must be a {'' if allow_empty else 'non-empty '}(T, 3) array of "
-                         f"vertex indices, got shape {tris.shape}")
-    if tris.size == 0:
-        return np.zeros((0, 3), np.int64)
-    if not np.issubdtype(tris.dtype, np.integer):
-        raise TypeError(f"{name} must hold integers, got {tris.dtype}")
-    tris = tris.astype(np.int64)
-    if tris.min() < 0 or tris.max() >= n_points:
-        raise ValueError(f"{name} must index vertices in [0, {n_points - 1}]")
-    if not allow_degenerate and np.any((tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2])
-                                       | (tris[:, 0] == tris[:, 2])):
-        raise ValueError(f"{name} contains degenerate triangles (a repeated vertex)")
-    return tris
-
-
 def _edges(tris):
     """Directed edges (3T, 2) and, per undirected edge, its triangles."""
     directed = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
@@ -382,13 +358,6 @@ def cloth_from_mesh(points, triangles, *, areal_density=0.2):
                           "polys", offsets, indices)
 
 
-def mesh_volume(points, triangles):
-    """Signed volume (m^3) enclosed by a closed triangle mesh (positive for outward normals)."""
-    p = np.asarray(points, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64)
-    return float(np.einsum("ij,ij->i", p[t[:, 0]], np.cross(p[t[:, 1]], p[t[:, 2]])).sum() / 6.0)
-
-
 def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
     """Voxelise a closed mesh into a spring lattice and embed the mesh in it.
 
@@ -421,8 +390,6 @@ def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
     tris = check_triangles("triangles", triangles, pts.shape[0])
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     density = check_range("density", density, 0.0, math.inf, low_inclusive=False)
-    from .voxelize import voxelize_mesh
-
     vox = voxelize_mesh(pts, tris, spacing)
     tris, volume, origin, dims = vox.triangles, vox.volume, vox.origin, vox.dims
     cells, cell = vox.cells, vox.vertex_cells

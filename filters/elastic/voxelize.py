@@ -17,7 +17,7 @@ from numba import njit
 
 from ..memory import check_memory
 from ..validation import check_points, check_range
-from .topology import BYTES_PER_NODE, check_triangles, mesh_volume
+from .surfaces import BYTES_PER_NODE, check_triangles, mesh_volume
 
 __all__ = ["Voxelization", "voxelize_mesh", "check_closed_manifold"]
 

@@ -208,6 +208,9 @@ def pcg_blocks(pairs, free, blocks, diag, lower, upper, b, x, tol, max_iter, sgs
                 r_vec[i, k] -= fa * ap[i, k]
                 rr += r_vec[i, k] * r_vec[i, k]
         rz_new = _op_precondition(sgs, lower, upper, free, blocks, inv, r_vec, z)
+        if not rz > 0.0:  # r . z underflowed (a state of ~1e-160): nothing left to solve
+            it += 1
+            break
         beta = rz_new / rz
         rz = rz_new
         it += 1

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from .dense3 import invert3_into
+from .scale import unit_scale
 
 __all__ = ["pcg", "vdot"]
 
@@ -121,6 +122,9 @@ def _pcg(indptr, indices, data, b, x, tol, max_iter, block):
             r_vec[i] -= alpha * ap[i]
         rr, rz_new = _precondition(inv, r_vec, z)
         rnorm = math.sqrt(rr)
+        if not rz > 0.0:  # r . z underflowed (a state of ~1e-160): nothing left to solve
+            it += 1
+            break
         beta = rz_new / rz
         rz = rz_new
         _update_p(p_vec, z, beta)
@@ -158,13 +162,23 @@ def pcg(matrix, b, x0=None, *, tol=1e-6, max_iter=1000, block=None):
     x : (n,) float64 array
     iterations : int
     relative_residual : float
+
+    Notes
+    -----
+    The system is solved at unit scale (:func:`filters.linalg.scale.unit_scale`), so a
+    right-hand side of 1e-200 or of denormals gives its (tiny) solution, and a zero one zero.
     """
     b = np.ascontiguousarray(b, dtype=np.float64)
-    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64, copy=True)
     if block is None:
         block = 3 if b.shape[0] % 3 == 0 else 1
     if block not in (1, 3) or b.shape[0] % block:
         raise ValueError(f"block must be 1 or 3 and divide n = {b.shape[0]}, got {block!r}")
-    it, res = _pcg(matrix.indptr, matrix.indices, matrix.data, b, x, float(tol), int(max_iter),
-                   int(block))
+    s, bs, xs = unit_scale(b, x0)
+    if s == 0.0:
+        return np.zeros_like(b), 0, 0.0
+    x = np.zeros_like(b) if xs is None else np.array(xs, dtype=np.float64, copy=True)
+    it, res = _pcg(matrix.indptr, matrix.indices, matrix.data, np.ascontiguousarray(bs), x,
+                   float(tol), int(max_iter), int(block))
+    if s != 1.0:
+        x *= s
     return x, int(it), float(res)

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+from .scale import unit_scale
+
 __all__ = ["direct_solve"]
 
 
@@ -21,9 +25,18 @@ def direct_solve(matrix, b):
     Returns
     -------
     (n,) float64 array
+        Solved at unit scale (:func:`filters.linalg.scale.unit_scale`): a right-hand side of
+        1e-200 or of denormals gives its tiny solution, a zero one zero.
     """
     from scipy.sparse.linalg import splu
 
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    s, bs, _ = unit_scale(b)
+    if s == 0.0:
+        return np.zeros_like(b)
     lu = splu(matrix.tocsc(), permc_spec="MMD_AT_PLUS_A",
               options={"SymmetricMode": True, "DiagPivotThresh": 0.0})
-    return lu.solve(b)
+    x = lu.solve(bs)
+    if s != 1.0:
+        x *= s
+    return x

@@ -127,6 +127,19 @@ class BlockOperator:
         self.upper_ordered = bool(self.upper[1].shape[0] == s
                                   and np.array_equal(self.upper[1], np.arange(s)))
 
+    def pair_lookup(self):
+        """Sorted keys ``min(a, b) N + max(a, b)`` of the pairs and the pair of every key
+        (int64 arrays (S,)), computed once: finds the pair of two particles by bisection."""
+        if getattr(self, "_lookup", None) is None:
+            n = self.diag.shape[0]
+            lo = np.minimum(self.pairs[:, 0], self.pairs[:, 1]).astype(np.int64)
+            hi = np.maximum(self.pairs[:, 0], self.pairs[:, 1]).astype(np.int64)
+            keys = lo * n + hi
+            order = np.argsort(keys, kind="stable")
+            self._lookup = (np.ascontiguousarray(keys[order]),
+                            np.ascontiguousarray(order, dtype=np.int64))
+        return self._lookup
+
     @property
     def shape(self):
         """``(3N, 3N)``."""

@@ -19,7 +19,9 @@ import numpy as np
 from ..validation import check_choice, check_range
 from .block_cg import pcg_blocks
 from .cg import pcg
+from .coupling import add_point_hessians_csr, add_point_hessians_pairs
 from .direct import direct_solve
+from .scale import unit_scale
 from .ssor import DEFAULT_OMEGA, SSORWorkspace, pcg_ssor
 
 __all__ = ["SOLVERS", "PRECONDITIONERS", "DEFAULT_OMEGA", "LinearSolver", "pcg_operator",
@@ -67,13 +69,21 @@ def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditione
     x : float64 array shaped like ``b``
     iterations : int
     relative_residual : float
+
+    Notes
+    -----
+    The system is solved at unit scale (:func:`filters.linalg.scale.unit_scale`), so a
+    right-hand side of 1e-200 or of denormals gives its (tiny) solution, and a zero one zero.
     """
     check_choice("preconditioner", preconditioner, PRECONDITIONERS)
     check_range("omega", omega, 0.0, 2.0, low_inclusive=False, high_inclusive=False)
     b = np.ascontiguousarray(b, dtype=np.float64)
     shape = b.shape
-    b3 = b.reshape(-1, 3)
-    x = np.zeros_like(b3) if x0 is None else np.array(x0, dtype=np.float64).reshape(-1, 3)
+    s, bs, xs = unit_scale(b, x0)  # tiny right-hand sides solved at unit scale
+    if s == 0.0:
+        return np.zeros_like(b), 0, 0.0
+    b3 = np.ascontiguousarray(bs.reshape(-1, 3))
+    x = np.zeros_like(b3) if xs is None else np.array(xs, dtype=np.float64).reshape(-1, 3)
     x = np.ascontiguousarray(x)
     if preconditioner == "ssor":
         work = (workspace or SSORWorkspace()).get(operator.diag.shape[0],
@@ -81,10 +91,12 @@ def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditione
         it, res = pcg_ssor(operator.pairs, operator.free, operator.blocks, operator.diag,
                            operator.upper, b3, x, float(tol), int(max_iter), float(omega), work,
                            operator.upper_ordered)
-        return x.reshape(shape), int(it), float(res)
-    it, res = pcg_blocks(operator.pairs, operator.free, operator.blocks, operator.diag,
-                         operator.lower, operator.upper, b3, x, float(tol), int(max_iter),
-                         preconditioner == "sgs")
+    else:
+        it, res = pcg_blocks(operator.pairs, operator.free, operator.blocks, operator.diag,
+                             operator.lower, operator.upper, b3, x, float(tol), int(max_iter),
+                             preconditioner == "sgs")
+    if s != 1.0:
+        x *= s
     return x.reshape(shape), int(it), float(res)
 
 
@@ -144,20 +156,26 @@ class LinearSolver:
                                  high_inclusive=False)
         self.workspace = SSORWorkspace()
 
-    def operator(self, system, x, xdir, h, diagonal=None):
+    def operator(self, system, x, xdir, h, diagonal=None, points=None):
         """The system matrix at ``(x, xdir, h)``: matrix-free when the method iterates and the
         system has such a form, else the assembled CSR matrix; plus the particle blocks
-        ``diagonal`` (N, 3, 3) when given (rows of pinned particles stay the identity).  A
+        ``diagonal`` (N, 3, 3) when given (rows of pinned particles stay the identity).  With
+        ``points`` = ``(nodes (M, K), weights (M, K), hessians (M, 6))`` of terms on embedded
+        points whose diagonal bound ``diagonal`` is, their exact blocks ``W^T H W`` instead
+        where the matrix's pattern holds them (:mod:`filters.linalg.coupling`).  A
         matrix-free operator's arrays are overwritten by the next call."""
         op = system.implicit_operator(x, xdir, h) if self.method != "direct" else None
         if op is not None:
             if diagonal is not None:
                 op.diag += np.where(system.pinned[:, None, None], 0.0, diagonal)
+                if points is not None:
+                    add_point_hessians_pairs(op, *points)
             return op
         mat = system.system_matrix(x, xdir, h)
-        return mat if diagonal is None else add_block_diagonal(mat, diagonal, system.pinned)
+        return _with_contact(mat, system.pinned, diagonal, points)
 
-    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int, diagonal=None):
+    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int, diagonal=None,
+              points=None):
         """Solve ``(H(x, xdir) + diagonal) d = rhs`` for an
         :class:`~filters.linalg.protocol.ImplicitSystem`.
 
@@ -179,6 +197,9 @@ class LinearSolver:
         diagonal : (N, 3, 3) float64, optional
             Symmetric positive semi-definite blocks added to the particles' diagonal blocks
             (contacts); ignored on pinned particles.
+        points : tuple, optional
+            The embedded points whose bound ``diagonal`` is, for their exact blocks (see
+            :meth:`operator`).
 
         Returns
         -------
@@ -188,16 +209,15 @@ class LinearSolver:
         direct : bool
             Whether a direct solve produced ``d``.
         """
-        op = self.operator(system, x, xdir, h, diagonal)
+        op = self.operator(system, x, xdir, h, diagonal, points)
         if not hasattr(op, "tocsc"):  # matrix-free
             d, it, res = pcg_operator(op, rhs, warm, tol=tol, max_iter=max_iter,
                                       preconditioner=self.preconditioner, omega=self.omega,
                                       workspace=self.workspace)
             if res <= tol or self.method == "pcg":
                 return d.ravel(), it, False
-            mat = system.system_matrix(x, xdir, h)
-            if diagonal is not None:
-                mat = add_block_diagonal(mat, diagonal, system.pinned)
+            mat = _with_contact(system.system_matrix(x, xdir, h), system.pinned, diagonal,
+                                points)
             return direct_solve(mat, rhs.ravel()), it, True
         return solve_linear(op, rhs.ravel(), warm, solver=self.method, tol=tol,
                             max_iter=max_iter)
@@ -206,6 +226,18 @@ class LinearSolver:
         """``H(x, xdir) p`` for ``p`` (N, 3) (no added blocks), shaped like ``p``."""
         op = self.operator(system, x, xdir, h)
         return (op @ np.ascontiguousarray(p).ravel()).reshape(p.shape)
+
+
+def _with_contact(mat, pinned, diagonal, points):
+    """A CSR matrix plus contact blocks: exact ones of ``points`` where its pattern holds
+    them, else the diagonal bound ``diagonal``."""
+    if diagonal is None:
+        return mat
+    if points is not None:
+        exact = add_point_hessians_csr(mat, *points, pinned)
+        if exact is not None:
+            return exact
+    return add_block_diagonal(mat, diagonal, pinned)
 
 
 def add_block_diagonal(matrix, blocks, pinned):

@@ -404,6 +404,9 @@ def pcg_ssor(pairs, free, blocks, diag, upper, b, x, tol, max_iter, omega, work,
                     r[i, k] -= alpha * w[i, k]
                 z0, z1, z2 = _mul3(dinv, i, r[i, 0], r[i, 1], r[i, 2])
                 rho_new += r[i, 0] * z0 + r[i, 1] * z1 + r[i, 2] * z2
+            if not rho > 0.0:  # underflow (a state of ~1e-160): nothing left to solve
+                it += 1
+                break
             beta = rho_new / rho
             rho = rho_new
             it += 1

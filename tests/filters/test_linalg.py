@@ -101,3 +101,97 @@ def test_advection_and_springs_share_the_scheme_names():
     assert sim.state.positions[0, 0] == pytest.approx(0.1)
     with pytest.raises(ValueError, match="linearized_backward_euler"):
         NoiseAdvection(Uniform(), positions=np.zeros((1, 3)), integrator="backward_euler")
+
+
+def _every_solve():
+    """(name, solve(b, x0) -> x) for every linear solver of filters.linalg, on one SPD system
+    (a pinned cloth's implicit matrix, assembled and matrix-free)."""
+    from filters.linalg import direct_solve, pcg, pcg_operator, solve_linear
+
+    system, state = _cloth(5)
+    x, h = state.positions, 0.01
+    mat = system.system_matrix(x, x, h)
+    op = system.implicit_operator(x, x, h)
+    tight = dict(tol=1e-12, max_iter=5000)
+    solves = [("pcg_block3", lambda b, w: pcg(mat, b, w, **tight)[0]),
+              ("pcg_jacobi", lambda b, w: pcg(mat, b, w, block=1, **tight)[0]),
+              ("direct_solve", lambda b, w: direct_solve(mat, b))]
+    for method in ("auto", "pcg", "direct"):
+        solves.append((f"solve_linear_{method}",
+                       lambda b, w, method=method: solve_linear(mat, b, w, solver=method,
+                                                                **tight)[0]))
+    for pre in ("ssor", "sgs", "block_jacobi"):
+        solves.append((f"pcg_operator_{pre}",
+                       lambda b, w, pre=pre: pcg_operator(op, b, w, preconditioner=pre,
+                                                          **tight)[0]))
+    for method in ("auto", "pcg", "direct"):
+        for target in (system, _AssembledOnly(system)):
+            solver = LinearSolver(method)
+            name = f"LinearSolver_{method}_{'operator' if target is system else 'csr'}"
+            solves.append((name, lambda b, w, s=solver, t=target: s.solve(
+                t, x, x, h, b.reshape(-1, 3), w, 1e-12, 5000)[0]))
+    return mat, solves
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e-310, 5e-324])
+def test_tiny_and_denormal_states_through_every_linear_solver(scale):
+    # a long undamped backward Euler run decays to ~1e-160 and below: CG squares its vectors,
+    # which underflowed (a ZeroDivisionError, or a residual of 0 that ended the solve early)
+    mat, solves = _every_solve()
+    rng = np.random.default_rng(3)
+    b = rng.normal(size=mat.shape[0])
+    b[:3] = 0.0  # the first pin's rows
+    b[3 * 5 - 3:3 * 5] = 0.0  # the second pin's
+    exact = np.linalg.solve(mat.toarray(), b)
+    tiny = b * scale
+    for name, solve in solves:
+        for warm in (None, exact):  # also from a warm start of ordinary size
+            got = solve(tiny, warm).ravel()
+            assert np.all(np.isfinite(got)), name
+            if scale >= 1e-300:  # normal numbers: the solution of the tiny system itself
+                np.testing.assert_allclose(got / scale, exact, rtol=1e-8,
+                                           atol=1e-8 * np.abs(exact).max(), err_msg=name)
+            else:  # denormals: the answer is zero to within the smallest numbers
+                assert np.abs(got).max() <= 1e3 * scale * np.abs(exact).max(), name
+        zero = solve(np.zeros_like(b), None).ravel()
+        assert np.array_equal(zero, np.zeros_like(b)), name
+
+
+def test_embedded_point_hessians_are_added_exactly():
+    # a point inside a cell of a spring lattice, weights w: its Hessian H joins the system as
+    # W^T H W (blocks w_a w_b H), not the diagonal bound sum_k w_k H
+    from filters.elastic.topology import icosphere, jello_from_mesh
+    from filters.linalg.coupling import add_point_hessians_csr, add_point_hessians_pairs
+
+    top = jello_from_mesh(*icosphere(0.1, 1), spacing=0.05)
+    system = SpringSystem(top.springs, top.rest_lengths, 1e3, top.masses)
+    x, h = top.positions, 0.01
+    emb = top.embedding
+    rng = np.random.default_rng(2)
+    m = emb.nodes.shape[0]
+    a = rng.normal(size=(m, 3, 3))
+    full = np.einsum("mij,mkj->mik", a, a)  # SPD per point
+    hess = full[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    n = x.shape[0]
+    w = np.zeros((m, n))
+    np.put_along_axis(w, emb.nodes, emb.weights, axis=1)
+    exact = np.einsum("ma,mij,mb->aibj", w, full, w).reshape(3 * n, 3 * n)
+    base = system.system_matrix(x, x, h).toarray()
+    points = (emb.nodes, emb.weights, np.ascontiguousarray(hess))
+    got = add_point_hessians_csr(system.system_matrix(x, x, h), *points, system.pinned)
+    np.testing.assert_allclose(got.toarray(), base + exact, atol=1e-9 * np.abs(base).max())
+    # the matrix-free operator: the diagonal bound, then the pair corrections
+    bound = np.zeros((n, 3, 3))
+    np.add.at(bound, emb.nodes.ravel(), (emb.weights[:, :, None, None]
+                                         * full[:, None]).reshape(-1, 3, 3))
+    op = system.implicit_operator(x, x, h)
+    op.diag += bound
+    assert add_point_hessians_pairs(op, *points)
+    p = rng.normal(size=(n, 3))
+    np.testing.assert_allclose(op.matvec(p).ravel(), (base + exact) @ p.ravel(),
+                               rtol=1e-9, atol=1e-9 * np.abs(base).max())
+    # a pattern without the pairs: refused, nothing changed
+    cloth, _ = _cloth(4)
+    far = (np.array([[1, 14]]), np.array([[0.5, 0.5]]), np.ones((1, 6)))
+    assert add_point_hessians_csr(cloth.system_matrix(_.positions, _.positions, h), *far,
+                                  cloth.pinned) is None

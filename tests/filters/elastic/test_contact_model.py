@@ -120,9 +120,10 @@ def _block(angle_deg, scheme, h, mu=0.5, stiffness=1e3):
 def test_block_on_a_tilted_plane_sticks_below_the_friction_angle_and_slides_above(
         scheme, h, stiffness, creep):
     """Coulomb friction, mu = 0.5 (friction angle 26.6 degrees): at 20 degrees the block stays
-    (static friction holds it with a creep below the slip velocity, 1 mm/s); at 35 degrees it
-    slides with a = g (sin a - mu cos a) = 1.609 m/s^2.  Measured: 0.48 mm in 1 s (0.94 mm with
-    forward Euler), and the acceleration to 1e-4 in every scheme."""
+    (static friction holds it with a creep below the slip velocity, 1 cm/s by default); at 35
+    degrees it slides with a = g (sin a - mu cos a) = 1.609 m/s^2.  Measured at a slip velocity
+    of 1 mm/s: 0.48 mm in 1 s (0.94 mm with forward Euler), and the acceleration to 1e-4 in
+    every scheme."""
     for angle in (20.0, 35.0):
         sim, up = _block(angle, scheme, h, stiffness=stiffness)
         sim.advance_to(0.2)  # the normal contact settles

@@ -1,0 +1,153 @@
+"""The exact Hessian of terms on points embedded in particles, added to an implicit system.
+
+A contact point ``p = sum_k w_k x[n_k]`` (a surface vertex inside a lattice cell or a
+tetrahedron) with a 3x3 Hessian ``H`` contributes ``W^T H W`` to the system matrix: the block
+``w_a w_b H`` between every two of its particles.  Spreading it on the diagonal alone
+(``sum_k w_k H`` on particle ``n_k``, a bound from above by Jensen's inequality) keeps Newton's
+directions descent directions but makes the model too stiff in every direction that is not a
+translation: Newton then converges linearly, at a rate near 1 when the contacts are stiff (a
+jello landing: 0.97 per iteration).  The exact blocks are added here:
+
+* to a CSR matrix whose pattern holds every pair of particles a point is embedded in (a finite
+  element mesh: the nodes of a tetrahedron; a spring jello: the corners of a cell), in place of
+  a copy (:func:`add_point_hessians_csr`);
+* to a matrix-free :class:`filters.linalg.operator.BlockOperator` whose pairs include every such
+  pair, with the identity ``w w^T = diag(w) - sum_{a<b} w_a w_b (e_a - e_b)(e_a - e_b)^T``
+  (``sum w = 1``): the diagonal bound plus pair blocks ``-w_a w_b H``
+  (:func:`add_point_hessians_pairs`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["add_point_hessians_csr", "add_point_hessians_pairs"]
+
+
+@njit(cache=True, inline="always")
+def _find(indices, start, stop, col):
+    """Index of ``col`` in the sorted ``indices[start:stop]``, or -1."""
+    lo = start
+    hi = stop
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if indices[mid] < col:
+            lo = mid + 1
+        else:
+            hi = mid
+    if lo < stop and indices[lo] == col:
+        return lo
+    return -1
+
+
+@njit(cache=True)
+def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
+    """Add (``write``) or look up the blocks ``w_a w_b H_j`` of every point ``j`` at the free
+    particles' rows and columns; returns False when the pattern lacks one."""
+    for j in range(nodes.shape[0]):
+        for a in range(nodes.shape[1]):
+            wa = weights[j, a]
+            na = nodes[j, a]
+            if wa == 0.0 or free[na] == 0.0:
+                continue
+            for b in range(nodes.shape[1]):
+                wb = weights[j, b]
+                nb = nodes[j, b]
+                if wb == 0.0 or free[nb] == 0.0:
+                    continue
+                w = wa * wb
+                for r in range(3):
+                    row = 3 * na + r
+                    for q in range(3):
+                        k = r * 3 + q
+                        e = hess[j, 0 if k == 0 else 1 if k in (1, 3) else 2 if k in (2, 6)
+                                 else 3 if k == 4 else 4 if k in (5, 7) else 5]
+                        p = _find(indices, indptr[row], indptr[row + 1], 3 * nb + q)
+                        if p < 0:
+                            return False
+                        if write:
+                            data[p] += w * e
+    return True
+
+
+def add_point_hessians_csr(matrix, nodes, weights, hess, pinned):
+    """``matrix + sum_j W_j^T H_j W_j`` over the free particles, or None when the pattern of
+    the CSR ``matrix`` (3N, 3N) lacks a block it needs.
+
+    Parameters
+    ----------
+    matrix : scipy.sparse.csr_matrix
+        With sorted column indices; not modified.
+    nodes : (M, K) int64
+        Particles of every point.
+    weights : (M, K) float64
+        Their weights.
+    hess : (M, 6) float64
+        Every point's symmetric Hessian (xx, xy, xz, yy, yz, zz).
+    pinned : (N,) bool
+        Particles whose rows and columns stay the identity.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix or None
+    """
+    free = np.where(pinned, 0.0, 1.0)
+    mat = matrix.copy()
+    if not mat.has_sorted_indices:
+        mat.sort_indices()
+    indptr = mat.indptr.astype(np.int64)
+    indices = mat.indices.astype(np.int64)
+    if not _csr_points(indptr, indices, mat.data, nodes, weights, hess, free, False):
+        return None
+    _csr_points(indptr, indices, mat.data, nodes, weights, hess, free, True)
+    return mat
+
+
+@njit(cache=True)
+def _pair_points(keys, order, n, blocks, nodes, weights, hess, write):
+    """Add (``write``) ``-w_a w_b H_j`` to the pair block of every two particles ``a < b`` of
+    every point ``j``; returns False when a pair is not one of the operator's."""
+    for j in range(nodes.shape[0]):
+        for a in range(nodes.shape[1]):
+            wa = weights[j, a]
+            if wa == 0.0:
+                continue
+            for b in range(a + 1, nodes.shape[1]):
+                wb = weights[j, b]
+                if wb == 0.0:
+                    continue
+                lo = min(nodes[j, a], nodes[j, b])
+                hi = max(nodes[j, a], nodes[j, b])
+                if lo == hi:
+                    continue
+                key = lo * n + hi
+                p = np.searchsorted(keys, key)
+                if p >= keys.shape[0] or keys[p] != key:
+                    return False
+                if write:
+                    s = order[p]
+                    w = wa * wb
+                    for k in range(6):
+                        blocks[s, k] -= w * hess[j, k]
+    return True
+
+
+def add_point_hessians_pairs(operator, nodes, weights, hess):
+    """Turn the diagonal bound ``sum_k w_k H`` already on an operator's particle blocks into the
+    exact ``W^T H W``, in place, by pair blocks ``-w_a w_b H`` (see the module docstring).
+    Returns False (and changes nothing) when a pair is not one of the operator's.
+
+    Parameters
+    ----------
+    operator : filters.linalg.operator.BlockOperator
+        Its ``blocks`` are changed in place.
+    nodes, weights, hess
+        As in :func:`add_point_hessians_csr`; the weights of a point sum to 1.
+    """
+    keys, order = operator.pair_lookup()
+    n = operator.diag.shape[0]
+    if not _pair_points(keys, order, n, operator.blocks, nodes, weights, hess, False):
+        return False
+    _pair_points(keys, order, n, operator.blocks, nodes, weights, hess, True)
+    return True
