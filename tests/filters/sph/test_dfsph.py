@@ -111,7 +111,7 @@ def test_solvers_reach_their_tolerances():
     assert 2 <= sim.last_density_iterations < sim.model.max_iterations
     assert sim.last_density_error <= sim.model.max_density_error
     # Velocity divergence of the interior block after the step, by the SPH estimate.
-    solver = sim._dfsph
+    solver = sim._stepper.solver
     after = solver.density_rate(sim.state.velocities).copy()
     inner = (np.abs(sim.state.positions - centre) < 0.5 * w - 2.5 * s).all(axis=1)
     assert inner.sum() >= 27
