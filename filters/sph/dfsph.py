@@ -92,10 +92,12 @@ from . import dfsph_kernels as K
 from .neighbourhood import WALL_CLUSTERS, neighbourhood_pass
 from .viscosity import ImplicitViscosity
 
-__all__ = ["DFSPHSolver", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
+__all__ = ["DFSPHSolver", "DFSPH_WARM_START", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
            "DFSPH_MIN_NEIGHBOURS", "DFSPH_WALL_GAP", "DFSPH_WALL_GAP_SINGLE",
            "DFSPH_WALL_TOLERANCE"]
 
+#: Fraction of the previous step's pressure each solve starts from (see the module notes).
+DFSPH_WARM_START = 0.5
 #: Cap of the density solver's warm start, as ``pi dt^2`` (dimensionless).
 DFSPH_WARM_START_CAP = 2.5e-4
 #: Cap of the divergence solver's warm start ``kappa_v = pi_v dt`` (m^2/s).
@@ -333,8 +335,8 @@ class DFSPHSolver:
             The previous step's ``pi`` in (warm start), this step's out (m^2/s^2).
         """
         self.density_rate(v)
-        K.density_start(rho, self.rate, rho0, dt, pi_prev, DFSPH_WARM_START_CAP, self.src,
-                        self.pi, self.active)
+        K.density_start(rho, self.rate, rho0, dt, pi_prev, DFSPH_WARM_START_CAP,
+                        DFSPH_WARM_START, self.src, self.pi, self.active)
         if self.walls is None:
             it, err = self._iterate(self.pi, dt * dt, self.max_density_error, self.min_iterations)
             K.pressure_accel(self.pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)

@@ -15,7 +15,8 @@ from numba import njit, prange
 from .wall_profile import equivalent_distance
 
 __all__ = ["density_rate", "pressure_accel", "pressure_accel_wall", "jacobi", "jacobi_wall",
-           "density_start", "divergence_start", "wall_start", "kick", "store", "drift"]
+           "density_start", "divergence_start", "wall_start", "wall_approach", "kick", "store",
+           "drift", "NO_WALL"]
 
 #: Marks a wall constraint that does not apply (no boundary near enough).
 NO_WALL = 1e30
@@ -117,11 +118,14 @@ def pressure_accel_wall(pi, pw, x, ntab, ncnt, fw, gsum, ncl, cgb, a):
 def jacobi_wall(a, x, src, pi, factor, ntab, ncnt, fw, gsum, scale, omega, err, wsrc, pw, ncl,
                 cgb, werr):
     """One relaxed Jacobi update of the density solve's ``pi`` (as :func:`jacobi`) and of the
-    wall pressures ``pw`` (see :mod:`filters.sph.dfsph`): with ``r_ik = wsrc_ik - scale a_i .
-    cgb_ik`` the slack left to wall ``k``, ``pw_ik <- max(pw_ik - omega r_ik / (scale
-    |cgb_ik|^2), 0)``.  ``err`` gets the predicted compressions, ``werr`` each particle's
-    largest wall violation (fraction of the kernel).  Returns the mean compression and the
-    largest violation (serial reductions)."""
+    wall pressures ``pw`` (see :mod:`filters.sph.dfsph`).  A particle's own unknowns are
+    updated one after the other (Gauss-Seidel within the particle: its walls in a corner push
+    it along overlapping directions and would overshoot together), each seeing the
+    acceleration the previous ones changed: with ``r_ik = wsrc_ik - scale a_i . cgb_ik`` the
+    slack left to wall ``k``, ``pw_ik <- max(pw_ik - omega r_ik / (scale |cgb_ik|^2), 0)``.
+    ``err`` gets the predicted compressions, ``werr`` each particle's largest wall violation
+    (fraction of the kernel).  Returns the mean compression and the largest violation (serial
+    reductions)."""
     n = pi.shape[0]
     inv = 1.0 / scale
     for i in prange(n):
@@ -135,16 +139,27 @@ def jacobi_wall(a, x, src, pi, factor, ntab, ncnt, fw, gsum, scale, omega, err, 
                              + a[j, 2] * (zi - x[j, 2]))
         r = src[i] - scale * s
         err[i] = -r if r < 0.0 else 0.0
-        pi[i] = max(pi[i] - omega * r * factor[i] * inv, 0.0)
+        old = pi[i]
+        pi[i] = max(old - omega * r * factor[i] * inv, 0.0)
         worst = 0.0
-        for k in range(ncl[i]):
-            if wsrc[i, k] < NO_WALL:
-                gx = cgb[i, k, 0]
-                gy = cgb[i, k, 1]
-                gz = cgb[i, k, 2]
-                rk = wsrc[i, k] - scale * (a[i, 0] * gx + a[i, 1] * gy + a[i, 2] * gz)
-                worst = max(worst, -rk)
-                pw[i, k] = max(pw[i, k] - omega * rk * inv / (gx * gx + gy * gy + gz * gz), 0.0)
+        if ncl[i] > 0:
+            d = pi[i] - old  # the particle's own acceleration after this update
+            ax = a[i, 0] - d * gsum[i, 0]
+            ay = a[i, 1] - d * gsum[i, 1]
+            az = a[i, 2] - d * gsum[i, 2]
+            for k in range(ncl[i]):
+                if wsrc[i, k] < NO_WALL:
+                    gx = cgb[i, k, 0]
+                    gy = cgb[i, k, 1]
+                    gz = cgb[i, k, 2]
+                    rk = wsrc[i, k] - scale * (ax * gx + ay * gy + az * gz)
+                    worst = max(worst, -rk)
+                    q = max(pw[i, k] - omega * rk * inv / (gx * gx + gy * gy + gz * gz), 0.0)
+                    d = q - pw[i, k]
+                    pw[i, k] = q
+                    ax -= d * gx
+                    ay -= d * gy
+                    az -= d * gz
         werr[i] = worst
     total = 0.0
     top = 0.0
@@ -181,15 +196,15 @@ def wall_start(v, ncl, cphi, cgb, cvb, dt, dmin, reach, inv_d, inv_s, wsrc, pw):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def density_start(rho, rate, rho0, dt, pi_prev, cap, src, pi, active):
+def density_start(rho, rate, rho0, dt, pi_prev, cap, warm, src, pi, active):
     """Density solve set-up: source ``1 - rho*/rho0`` with ``rho* = rho + dt D rho / D t`` and
-    the warm start ``pi = 0.5 min(pi_prev, cap / dt^2)`` where compressed, else 0."""
+    the warm start ``pi = warm min(pi_prev, cap / dt^2)`` where compressed, else 0."""
     inv2 = 1.0 / (dt * dt)
     for i in prange(rho.shape[0]):
         adv = rho[i] / rho0 + dt * rate[i]
         src[i] = 1.0 - adv
         active[i] = True
-        pi[i] = 0.5 * min(pi_prev[i], cap * inv2) if adv > 1.0 else 0.0
+        pi[i] = warm * min(pi_prev[i], cap * inv2) if adv > 1.0 else 0.0
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -235,3 +250,28 @@ def drift(x, v, dt):
     for i in range(n):
         best = max(best, vmax[i])
     return math.sqrt(best)
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def wall_approach(v, ncl, cphi, cgb, cvb, reach, inv_d, inv_s):
+    """Largest speed (m/s) at which a particle within the equivalent distance ``reach`` (m) of
+    a single wall (clusters ``k >= 1``) moves towards it: ``(v_i . cgb_ik - cvb_ik) / g(d_ik)``
+    (the rate of change of ``phi_ik`` over the flat-wall slope)."""
+    n = v.shape[0]
+    out = np.zeros(n)
+    for i in prange(n):
+        best = 0.0
+        for k in range(1, ncl[i]):
+            if cphi[i, k] <= 0.0:
+                continue
+            d, g = equivalent_distance(cphi[i, k], inv_d, inv_s)
+            if d > reach or g <= 0.0:
+                continue
+            rate = (v[i, 0] * cgb[i, k, 0] + v[i, 1] * cgb[i, k, 1] + v[i, 2] * cgb[i, k, 2]
+                    - cvb[i, k]) / g
+            best = max(best, rate)
+        out[i] = best
+    top = 0.0
+    for i in range(n):
+        top = max(top, out[i])
+    return top
