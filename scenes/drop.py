@@ -27,7 +27,7 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
           max_iterations: int = 100, cfl: float = 0.4, max_dt: float = 0.005,
           speed_of_sound: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
-    """Build the drop flow (about 2,500 fluid particles with the defaults).
+    """Build the drop flow (about 1,750 fluid particles with the defaults).
 
     Parameters
     ----------

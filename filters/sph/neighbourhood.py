@@ -57,6 +57,23 @@ def boundary_reach_mask(xb, origin, cell, dims):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _wall_of(i, mx, my, mz, nc, cn):
+    """The first of particle ``i``'s wall clusters 1 .. nc - 1 whose normal is within 45 degrees
+    of ``(mx, my, mz)`` (either orientation; a zero normal matches a zero one), else ``nc``."""
+    zero = mx * mx + my * my + mz * mz == 0.0
+    for k in range(1, nc):
+        cx = cn[i, k, 0]
+        cy = cn[i, k, 1]
+        cz = cn[i, k, 2]
+        if zero:
+            if cx * cx + cy * cy + cz * cz == 0.0:
+                return k
+        elif abs(cx * mx + cy * my + cz * mz) >= SAME_WALL_COS:
+            return k
+    return nc
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _home(q, origin, inv_cell, dim):
     return min(max(int(math.floor((q - origin) * inv_cell)), 0), dim - 1)
 
@@ -178,6 +195,10 @@ def neighbourhood_pass(x, start, origin, cell, dims, boundary, vol, mass, h, kin
         vr = 0.0
         nb = 0
         nc = 1
+        lk = 0
+        lx = math.nan  # no last normal yet (NaN equals nothing)
+        ly = math.nan
+        lz = math.nan
         u0 = 0.0
         u1 = 0.0
         u2 = 0.0
@@ -224,36 +245,31 @@ def neighbourhood_pass(x, start, origin, cell, dims, boundary, vol, mass, h, kin
                         if moving:
                             vg = bvel[b, 0] * tx + bvel[b, 1] * ty + bvel[b, 2] * tz
                             vr += vg
-                        # the wall this particle belongs to
+                        # the wall this particle belongs to (as the last one's, if the same normal)
                         mx = bnrm[b, 0]
                         my = bnrm[b, 1]
                         mz = bnrm[b, 2]
-                        zero = mx * mx + my * my + mz * mz == 0.0
-                        k = nc
-                        for kk in range(1, nc):
-                            cx = cn[i, kk, 0]
-                            cy = cn[i, kk, 1]
-                            cz = cn[i, kk, 2]
-                            if zero:
-                                if cx * cx + cy * cy + cz * cz == 0.0:
-                                    k = kk
-                                    break
-                            elif abs(cx * mx + cy * my + cz * mz) >= SAME_WALL_COS:
-                                k = kk
-                                break
-                        if k == nc:
-                            if nc < kcap:
-                                nc += 1
-                                cn[i, k, 0] = mx
-                                cn[i, k, 1] = my
-                                cn[i, k, 2] = mz
-                                cphi[i, k] = 0.0
-                                cgb[i, k, 0] = 0.0
-                                cgb[i, k, 1] = 0.0
-                                cgb[i, k, 2] = 0.0
-                                cvb[i, k] = 0.0
-                            else:
-                                k = nc - 1
+                        if mx == lx and my == ly and mz == lz:
+                            k = lk
+                        else:
+                            k = _wall_of(i, mx, my, mz, nc, cn)
+                            if k == nc:
+                                if nc < kcap:
+                                    nc += 1
+                                    cn[i, k, 0] = mx
+                                    cn[i, k, 1] = my
+                                    cn[i, k, 2] = mz
+                                    cphi[i, k] = 0.0
+                                    cgb[i, k, 0] = 0.0
+                                    cgb[i, k, 1] = 0.0
+                                    cgb[i, k, 2] = 0.0
+                                    cvb[i, k] = 0.0
+                                else:
+                                    k = nc - 1
+                            lk = k
+                            lx = mx
+                            ly = my
+                            lz = mz
                         cphi[i, k] += pw
                         cgb[i, k, 0] += tx
                         cgb[i, k, 1] += ty
