@@ -2,8 +2,10 @@
 
 Both validate every parameter before sampling a single particle, so a bad value fails fast with a
 ``ValueError`` naming it.  Fluid particles sit at the cell centres of a lattice of step
-``spacing`` aligned with the tank's inner walls, and the walls are :func:`filters.sph.boundary.box_boundary`
-layers on the same lattice, so the fluid starts exactly at rest density, corners included.
+``spacing`` aligned with the tank's inner walls, and the walls are
+:func:`filters.sph.boundary.box_boundary` layers on the same lattice, so the fluid starts
+exactly at rest density, corners included.  With DFSPH the dam break's column starts with its
+hydrostatic pressure and the drop's pool starts settled (:mod:`filters.sph.settle`).
 """
 
 from __future__ import annotations
