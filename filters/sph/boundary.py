@@ -398,6 +398,13 @@ def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.
     BoundaryParticles
         With the normal of the triangle each sample was taken from (one of the triangles
         sharing a vertex or an edge), oriented as the faces are (counter-clockwise: outward).
+
+    Notes
+    -----
+    One layer fills at most 0.22 of a particle's kernel (on the surface), too little for the
+    DFSPH wall constraints to act (:mod:`filters.sph.dfsph`): the liquid's pressure keeps it
+    out, but an isolated particle can pass.  A body that must stop spray needs its boundary a
+    support radius thick (several layers).
     """
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3 or not np.isfinite(v).all():

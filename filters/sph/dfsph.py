@@ -64,6 +64,12 @@ spacings; a particle next to one wall sits at 0.58 on the lattice), so that a pa
 up one wall cannot trade its distance to the floor for a smaller one to the wall.  Wherever the
 fluid pressure keeps the particle away, as in any liquid at rest, the wall pressures stay zero;
 the solve also iterates until no wall constraint is violated by more than 1 % of the kernel.
+The constraints read a wall through the fraction of the kernel it fills, which reaches 1/2 at
+the surface of a boundary at least a support radius thick (the layers of
+:func:`filters.sph.boundary.box_boundary`, a body sampled in layers); one layer of samples
+(:func:`filters.sph.boundary.mesh_boundary`, a cloth) fills at most 0.22 of it, as a flat
+wall half a spacing away, so there the constraints do not act: liquid is held off such a
+sheet by its pressure, an isolated particle is not.
 
 **Warm start** (Bender & Koschier 2017, Sec. 4.4): each solve starts from half of the previous
 step's converged pressure (IISPH's and SPlisHSPlasH's choice; starting from all of it converges

@@ -254,3 +254,22 @@ def test_wall_profile_reads_the_boundary_as_a_distance():
     assert phi_at(0.0) == pytest.approx(0.5, abs=0.005)
     d, _ = equivalent_distance(phi_at(0.5 * s), p.inverse_distance, p.inverse_slope)
     assert 0.5 * s < d < 0.65 * s
+
+
+def test_one_layer_of_samples_fills_a_fifth_of_the_kernel():
+    """What mesh_boundary's notes and the DFSPH walls' docstring say: a flat sheet sampled in
+    one layer fills at most 0.22 of a particle's kernel on it (a box wall: 1/2 on its plane),
+    as much as a thick wall half a spacing away."""
+    from filters.kernels import kernel_value
+
+    s, h = 0.01, 0.02
+    v = np.array([[-0.1, -0.1, 0.0], [0.1, -0.1, 0.0], [0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]])
+    sheet = mesh_boundary(v, [[0, 1, 2], [0, 2, 3]], s, check_closed=False)
+
+    def phi(z):
+        r = np.linalg.norm(sheet.points - [0.003, 0.002, z], axis=1)
+        return float((kernel_value("cubic", r, h) * sheet.volumes)[r < h].sum())
+
+    assert 0.18 < phi(0.0) < 0.22
+    assert phi(0.0) == max(phi(z) for z in np.linspace(-0.01, 0.01, 9))
+    assert phi(0.5 * s) == pytest.approx(half_space_fraction(0.58 * s, h), abs=0.01)
