@@ -21,9 +21,9 @@ from numba import njit, prange
 from ..binning import cell_keys, counting_sort
 from ..kernels import kernel_dw
 from .boundary import BoundaryParticles
-from .neighbourhood import SAME_WALL_COS, boundary_reach_mask, cell_range
+from .neighbourhood import boundary_reach_mask, cell_range, wall_of
 
-__all__ = ["BoundarySet", "boundary_forces", "same_cluster"]
+__all__ = ["BoundarySet", "boundary_forces"]
 
 
 class BoundarySet:
@@ -160,25 +160,6 @@ class BoundarySet:
             self._sort()
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def same_cluster(i, nx, ny, nz, ncl, cn):
-    """Wall cluster of fluid particle ``i`` that a boundary particle of normal ``(nx, ny, nz)``
-    belongs to (see :func:`filters.sph.neighbourhood.neighbourhood_pass`): the first cluster
-    ``k >= 1`` whose normal is within 45 degrees of it (either orientation; zero normals form
-    their own cluster), else the last one."""
-    zero = nx * nx + ny * ny + nz * nz == 0.0
-    for k in range(1, ncl[i]):
-        cx = cn[i, k, 0]
-        cy = cn[i, k, 1]
-        cz = cn[i, k, 2]
-        if zero:
-            if cx * cx + cy * cy + cz * cz == 0.0:
-                return k
-        elif abs(cx * nx + cy * ny + cz * nz) >= SAME_WALL_COS:
-            return k
-    return ncl[i] - 1
-
-
 @njit(parallel=True, cache=True, error_model="numpy")
 def _forces(sel, xb, vb, volb, fvolb, nrmb, x, start, origin, cell, dims, mass, h, kind, ptot,
             pw, ncl, cn, vv, nu_b, out):
@@ -213,9 +194,9 @@ def _forces(sel, xb, vb, volb, fvolb, nrmb, x, start, origin, cell, dims, mass, 
                         p = ptot[i]
                         if ncl[i] > 0:
                             p += pw[i, 0]
-                            if ncl[i] > 1:
-                                p += pw[i, same_cluster(i, nrmb[b, 0], nrmb[b, 1], nrmb[b, 2],
-                                                        ncl, cn)]
+                            if ncl[i] > 1:  # the wall b was counted in (same rule as the pass)
+                                w = wall_of(i, nrmb[b, 0], nrmb[b, 1], nrmb[b, 2], ncl[i], cn)
+                                p += pw[i, min(w, ncl[i] - 1)]
                         c = mass * p * volb[b] * g
                         if nu_b > 0.0 and fvolb[b] > 0.0:
                             u = ((vv[i, 0] - vb[b, 0]) * dx + (vv[i, 1] - vb[b, 1]) * dy

@@ -12,7 +12,8 @@ from numba import njit, prange
 
 from ..kernels import kernel_w, kernel_w_dw
 
-__all__ = ["neighbourhood_pass", "boundary_reach_mask", "cell_range", "WALL_CLUSTERS", "SAME_WALL_COS"]
+__all__ = ["neighbourhood_pass", "boundary_reach_mask", "cell_range", "wall_of", "WALL_CLUSTERS",
+           "SAME_WALL_COS"]
 
 #: Wall clusters kept per fluid particle: the whole boundary, then up to three walls by normal.
 WALL_CLUSTERS = 4
@@ -57,7 +58,7 @@ def boundary_reach_mask(xb, origin, cell, dims):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _wall_of(i, mx, my, mz, nc, cn):
+def wall_of(i, mx, my, mz, nc, cn):
     """The first of particle ``i``'s wall clusters 1 .. nc - 1 whose normal is within 45 degrees
     of ``(mx, my, mz)`` (either orientation; a zero normal matches a zero one), else ``nc``."""
     zero = mx * mx + my * my + mz * mz == 0.0
@@ -252,7 +253,7 @@ def neighbourhood_pass(x, start, origin, cell, dims, boundary, vol, mass, h, kin
                         if mx == lx and my == ly and mz == lz:
                             k = lk
                         else:
-                            k = _wall_of(i, mx, my, mz, nc, cn)
+                            k = wall_of(i, mx, my, mz, nc, cn)
                             if k == nc:
                                 if nc < kcap:
                                     nc += 1
