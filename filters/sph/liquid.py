@@ -84,7 +84,9 @@ class SPHLiquid(Simulation):
         Extra acceleration field ``field(positions, velocities, time) -> (N, 3)`` (m/s^2), or an
         object whose ``acceleration`` method has that signature.
     cfl : float
-        Courant number in (0, 1], default 0.4.  DFSPH: ``dt = cfl * spacing / max |v|``.
+        Courant number in (0, 1], default 0.4.  DFSPH: ``dt = cfl * spacing / max |v|``, and a
+        particle near a wall approaches it by at most ``0.35 cfl`` spacings per step
+        (:meth:`filters.sph.dfsph_step.DFSPHStepper.wall_cap`).
     max_dt : float, optional
         Largest step (s) in (0, 1]; default 1/240 (WCSPH) or 0.005 (DFSPH).
     density_error_limit : float
@@ -103,10 +105,11 @@ class SPHLiquid(Simulation):
         DFSPH the wall constraints (:mod:`filters.sph.dfsph`) keep every particle off the
         walls (tested: none needed in the dam break at 1 cm and 4 mm).
     boundary_pressure : {"adami", "mirror"}
-        ``"adami"`` (default): boundary pressures extrapolated from the fluid with the
+        WCSPH: ``"adami"`` (default): boundary pressures extrapolated from the fluid with the
         hydrostatic term (Adami, Hu & Adams 2012), which keeps the pressure gradient right next to
         walls; ``"mirror"``: each fluid particle's own pressure mirrored onto the boundary
-        (Akinci et al. 2012), cheaper but makes narrow columns too stiff near walls.
+        (Akinci et al. 2012), cheaper but makes narrow columns too stiff near walls.  DFSPH
+        mirrors, plus its wall constraints (:mod:`filters.sph.dfsph`).
     skin : float
         Verlet skin as a fraction of ``h`` in [0, 1], default 0.2: neighbour lists cover
         ``h (1 + skin)`` and are rebuilt (and the particles re-sorted by cell) only when some
