@@ -6,7 +6,9 @@ particles) down to a quarter of it (1 mm, 2,000,000 particles).  For each spacin
 command line (particles only: ``--set surface=false --no-render``) for ``--duration`` seconds
 (0.6 s by default: the front hits the far wall at about 0.25 s, runs up it and falls back), then
 reads every frame back and records, per frame, the mean compression ``mean(max(rho / rho0 - 1,
-0))`` and the worst particle's, the largest speed, and the wall time per simulated second.
+0))`` and the worst particle's, the largest speed, the tank's safety net's corrections so far
+(the field ``container_corrections``: 0 while the walls hold by themselves), and the wall time
+per simulated second.
 
 A run folder that already holds a complete series of the same parameters is read, not rerun
 (``--runs DIR``, default ``outputs/refinement``; its wall time is kept beside it in
@@ -63,7 +65,8 @@ def _complete(folder: Path, spacing: float, duration: float) -> bool:
 
 
 def analyse(folder: Path) -> list[dict]:
-    """Per frame: time, particle count, mean and worst compression, largest speed."""
+    """Per frame: time, particle count, the container corrections so far (the safety net),
+    mean and worst compression, largest speed."""
     from pipeline.series import read_collection, read_frame
     from vtkmodules.util import numpy_support
 
@@ -74,7 +77,10 @@ def analyse(folder: Path) -> list[dict]:
         rho = numpy_support.vtk_to_numpy(pd.GetArray("density"))
         v = numpy_support.vtk_to_numpy(pd.GetArray("velocity"))
         compression = np.maximum(rho / REST_DENSITY - 1.0, 0.0)
+        fixed = data.GetFieldData().GetArray("container_corrections")
         rows.append({"time": t, "particles": int(rho.size),
+                     "container_corrections": (int(numpy_support.vtk_to_numpy(fixed)[0])
+                                               if fixed is not None else None),
                      "mean_compression": float(compression.mean()),
                      "worst_compression": float(compression.max()),
                      "max_speed": float(np.sqrt((v * v).sum(axis=1)).max()),

@@ -27,7 +27,8 @@ that is what the ``persim_*`` parts measure, on one scene for all four solvers:
   H)``) and blobflow's acoustic CFL step, given to SPlisHSPlasH as its fixed step (its CFL looks
   at velocities only, which is unstable for WCSPH).
 * **Each at its natural step**: DFSPH steps from each code's own CFL rule at its default factor
-  (blobflow ``cfl`` 0.4 of a spacing per step, plus its solver-aware cap; SPlisHSPlasH
+  (blobflow ``cfl`` 0.4 of a spacing per step, plus its solver-aware cap and its wall condition:
+  a particle near a wall approaches it by at most 0.1 spacings per step; SPlisHSPlasH
   ``cflFactor`` 0.5, i.e. 0.2 of a spacing, and ``cflMaxTimeStepSize`` 0.005 s).  Density
   errors are reported over the whole run and after the first 50 ms: SPlisHSPlasH's single layer
   of wall particles overestimates the density at walls, so its resting column starts 1.5 %
@@ -41,6 +42,9 @@ that is what the ``persim_*`` parts measure, on one scene for all four solvers:
   process, and SPlisHSPlasH's settings are **read back from the loaded simulation** (a key the
   loader ignores would otherwise go unnoticed).  Timing starts after the scene is built and,
   for blobflow, after Numba compiled its kernels on a small copy of the scene.
+blobflow's rows also record how many particles its tank's safety net had to put back
+(``container_corrections``, 0 when its walls hold), and the summary the ratio of the two codes'
+worst particle after 50 ms (``dfsph_worst_particle_vs_splishsplash_*``, <= 1: no worse).
 Also measured (unchanged from earlier versions of this benchmark): fixed-radius neighbour search
 against ``scipy.spatial.cKDTree`` (``nsearch``), and peak memory per fluid particle of a
 1M-particle dam break for each solver (``memory_*``).
@@ -197,6 +201,7 @@ def part_persim_blobflow(size, solver):
             "worst_particle_density_error_after_50ms": late_max,
             "front_x_m": float(np.sort(sim.state.positions[:, 0])[-10]),
             "max_speed_end_m_s": float(v.max()),
+            "container_corrections": int(sim.contained),
             "settings": {"cfl": m.cfl, "max_dt": m.max_dt, "max_density_error":
                          m.max_density_error, "max_divergence_error": m.max_divergence_error,
                          "viscosity": m.viscosity, "kinematic_viscosity": NU if solver == "dfsph"
@@ -537,6 +542,11 @@ def summarise(r):
             s[f"dfsph_speedup_vs_blobflow_wcsph_{size}"] = wc / ours
         if wc and pwc:
             s[f"wcsph_speedup_vs_splishsplash_wcsph_{size}"] = pwc / wc
+        mine = _get(r, f"persim_{size}_blobflow_dfsph", "worst_particle_density_error_after_50ms")
+        theirs = _get(r, f"persim_{size}_splishsplash_dfsph",
+                      "worst_particle_density_error_after_50ms")
+        if mine and theirs:  # <= 1: blobflow's worst particle no worse than SPlisHSPlasH's
+            s[f"dfsph_worst_particle_vs_splishsplash_{size}"] = mine / theirs
     for part in ("nsearch", "nsearch_2threads"):
         for n in ("100000", "1000000"):
             v = _get(r, part, n, "speedup_pairs_vs_ckdtree")

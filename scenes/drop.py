@@ -22,12 +22,12 @@ SCENE_DURATION = 1.5
 def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: float = 0.3,
           pool_depth: float = 0.05, drop_radius: float = 0.04, drop_height: float = 0.2,
           drop_speed: float = 0.0, spacing: float = 0.012, viscosity: float = 0.05,
-          surface_tension: float = 0.0, solver: str = "dfsph",
+          kinematic_viscosity: float = 0.0, surface_tension: float = 0.0, solver: str = "dfsph",
           max_density_error: float = 0.001,
           max_iterations: int = 100, cfl: float = 0.4, max_dt: float = 0.005,
           speed_of_sound: float = 0.0, surface: bool = True, smooth_iterations: int = 30,
           feature_smoothing: int = 25, anisotropic: bool = True) -> Flow:
-    """Build the drop flow (about 2,500 fluid particles with the defaults).
+    """Build the drop flow (about 1,750 fluid particles with the defaults).
 
     Parameters
     ----------
@@ -48,7 +48,11 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
     spacing : float
         Particle spacing (m), > 0.
     viscosity : float
-        Monaghan's artificial viscosity ``alpha`` in [0, 1].
+        Monaghan's artificial viscosity ``alpha`` in [0, 1] (DFSPH: ``nu = alpha c h / 20``
+        unless ``kinematic_viscosity`` is given).
+    kinematic_viscosity : float
+        DFSPH: kinematic viscosity (m^2/s) in [0, 1] of the liquid and against the walls; 0
+        (default) for the one ``viscosity`` gives.
     surface_tension : float
         Akinci et al. (2013) surface tension coefficient, >= 0.
     solver : {"dfsph", "wcsph"}
@@ -83,7 +87,8 @@ def build(*, tank_length: float = 0.24, tank_width: float = 0.24, tank_height: f
         pool_depth=pool_depth, drop_radius=drop_radius, drop_height=drop_height,
         drop_speed=drop_speed, spacing=spacing, viscosity=viscosity,
         surface_tension=surface_tension, solver=solver,
-        **solver_options(solver, max_density_error, max_iterations, speed_of_sound),
+        **solver_options(solver, max_density_error, max_iterations, speed_of_sound,
+                         kinematic_viscosity),
         cfl=cfl, max_dt=max_dt)
     flow = Flow(SimulationSource(simulation, fps=SCENE_FPS, duration=SCENE_DURATION))
     tank = Box((0.0, 0.0, 0.0), (tank_length, tank_width, tank_height))  # the tank's inner box

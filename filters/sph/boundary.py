@@ -17,7 +17,11 @@ stiff WCSPH at t = 0.  This module offers two samplings without that bias:
     sampled the same way has rest density in its first layer.
 
 Both return :class:`BoundaryParticles` whose ``volumes`` are SPH volumes (m^3): a boundary
-particle adds ``rho0 * volumes[b] * W`` to a density.  :func:`lattice_volume` is the volume that
+particle adds ``rho0 * volumes[b] * W`` to a density.  Each particle also carries the normal of
+the surface it samples (the liquid groups boundary particles by it to keep fluid particles off
+every wall of a corner, :mod:`filters.sph.dfsph`), a velocity (moving walls and bodies, see
+:meth:`filters.sph.SPHLiquid.move_boundary`) and a friction factor (0: a free-slip wall).
+:func:`boundary_volumes` gives the volumes of any sampled surface, e.g. of a body that deforms.  :func:`lattice_volume` is the volume that
 makes a perfect fluid lattice of the given spacing have rest density.
 """
 
@@ -26,48 +30,82 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numba import njit, prange
 
-from ..binning import cell_keys, counting_sort
 from ..geometry import Box
 from ..kernels import kernel_id, kernel_w
 from ..neighbors import NeighborSearch
 from ..validation import check_finite_vector, check_int, check_range
 
-__all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary", "sort_boundary",
-           "concatenate_boundaries"]
+__all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary",
+           "boundary_volumes", "concatenate_boundaries", "BOX_FACES"]
+
+#: Names of the faces of :func:`box_boundary`'s tank, for its ``free_slip`` argument.
+BOX_FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 
 
 @dataclass(frozen=True)
 class BoundaryParticles:
-    """Static boundary particles.
+    """Boundary particles: samples of walls or bodies that the liquid cannot enter.
 
     Parameters
     ----------
-    points : (M, 3) float64 array
+    points : (M, 3) array_like
         Positions (m).
-    volumes : (M,) float64 array
-        SPH volumes (m^3); a boundary particle contributes ``rho0 * volumes[b] * W`` to a density.
+    volumes : (M,) array_like
+        SPH volumes (m^3), > 0; a boundary particle contributes ``rho0 * volumes[b] * W`` to a
+        density.
+    normals : (M, 3) array_like, optional
+        Unit normal of the surface each particle samples (either orientation), or zeros where
+        none is known.  Default: zeros.
+    velocities : (M, 3) array_like, optional
+        Velocities (m/s) of the surface (a moving wall or body); default zeros.
+    friction : (M,) array_like, optional
+        Factor >= 0 on the liquid's boundary viscosity at each particle: 1 (default) a no-slip
+        wall with the liquid's ``boundary_viscosity``, 0 a free-slip wall.
+
+    Notes
+    -----
+    The arrays are copied and made read-only.
     """
 
     points: np.ndarray
     volumes: np.ndarray
+    normals: np.ndarray | None = None
+    velocities: np.ndarray | None = None
+    friction: np.ndarray | None = None
 
     def __post_init__(self):
-        p = np.ascontiguousarray(self.points, dtype=np.float64)
-        v = np.ascontiguousarray(self.volumes, dtype=np.float64)
+        p = np.array(self.points, dtype=np.float64, order="C")
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"points must have shape (M, 3), got {p.shape}")
-        if v.shape != (p.shape[0],):
-            raise ValueError(f"volumes must have shape ({p.shape[0]},), got {v.shape}")
+        m = p.shape[0]
+        v = np.array(self.volumes, dtype=np.float64, order="C")
+        if v.shape != (m,):
+            raise ValueError(f"volumes must have shape ({m},), got {v.shape}")
         if not (np.isfinite(p).all() and np.isfinite(v).all() and (v > 0).all()):
             raise ValueError("boundary points must be finite and volumes finite and > 0")
-        p.setflags(write=False)
-        v.setflags(write=False)
-        object.__setattr__(self, "points", p)
-        object.__setattr__(self, "volumes", v)
+        arrays = {"points": p, "volumes": v}
+        for name, default in (("normals", 0.0), ("velocities", 0.0)):
+            a = getattr(self, name)
+            a = (np.full((m, 3), default) if a is None
+                 else np.array(a, dtype=np.float64, order="C"))
+            if a.shape != (m, 3) or not np.isfinite(a).all():
+                raise ValueError(f"{name} must be a finite ({m}, 3) array, got shape {a.shape}")
+            arrays[name] = a
+        n = arrays["normals"]
+        length = np.sqrt((n * n).sum(axis=1))
+        if (length > 0).any() and np.abs(length[length > 0] - 1.0).max() > 1e-6:
+            raise ValueError("normals must be unit vectors (or zero where unknown)")
+        f = (np.ones(m) if self.friction is None
+             else np.array(self.friction, dtype=np.float64, order="C"))
+        if f.shape != (m,) or not (np.isfinite(f).all() and (f >= 0).all()):
+            raise ValueError(f"friction must be a finite ({m},) array of values >= 0")
+        arrays["friction"] = f
+        for name, a in arrays.items():
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
 
     @property
     def n_points(self) -> int:
@@ -76,7 +114,8 @@ class BoundaryParticles:
 
 
 def concatenate_boundaries(*parts: BoundaryParticles) -> BoundaryParticles:
-    """Join several :class:`BoundaryParticles` (e.g. a tank and an obstacle) into one."""
+    """Join several :class:`BoundaryParticles` (e.g. a tank and an obstacle) into one, in order
+    (the particles of ``parts[1]`` follow those of ``parts[0]``, and so on)."""
     if not parts:
         return BoundaryParticles(np.zeros((0, 3)), np.zeros(0))
     return BoundaryParticles(np.concatenate([p.points for p in parts]),
@@ -132,7 +171,7 @@ def _axis_coords(lo, hi, spacing, layers):
 
 def box_boundary(lower, upper=None, spacing: float | None = None, *,
                  support_factor: float = 2.0, kernel: str = "cubic", layers: int | None = None,
-                 open_top: bool = False) -> BoundaryParticles:
+                 open_top: bool = False, free_slip=()) -> BoundaryParticles:
     """Boundary particles in layers outside the walls of the box ``[lower, upper]``.
 
     The fluid lives inside the box.  Samples sit on the fluid lattice continued through the walls
@@ -154,10 +193,16 @@ def box_boundary(lower, upper=None, spacing: float | None = None, *,
         Number of layers; default ``ceil(support_factor)``, which gives full kernel support.
     open_top : bool
         Leave out the lid (the face at ``upper[2]``).
+    free_slip : iterable of str
+        Faces without friction (:data:`BOX_FACES`: ``"x-"`` is the wall at ``lower[0]``, ``"x+"``
+        the one at ``upper[0]``, ...; an axis name ``"y"`` means both of its faces): their
+        particles get ``friction`` 0, the others 1.
 
     Returns
     -------
     BoundaryParticles
+        Each particle's normal is the axis of the face it lies behind (the axis along which it
+        is farthest outside the box); particles beyond an edge or a corner count for one face.
     """
     if isinstance(lower, Box):
         if upper is not None:
@@ -176,6 +221,17 @@ def box_boundary(lower, upper=None, spacing: float | None = None, *,
     if layers is None:
         layers = int(math.ceil(support_factor - 1e-9))
     layers = check_int("layers", layers, 1, 8)
+    if isinstance(free_slip, str):
+        free_slip = (free_slip,)
+    slip = set()
+    for face in free_slip:
+        if face in ("x", "y", "z"):
+            slip.update((face + "-", face + "+"))
+        elif face in BOX_FACES:
+            slip.add(face)
+        else:
+            raise ValueError(f"free_slip faces must be among {BOX_FACES} or 'x', 'y', 'z'; "
+                             f"got {face!r}")
     axes = [_axis_coords(lower[k], upper[k], spacing, layers) for k in range(3)]
     (cx, wx), (cy, wy), (cz, wz) = axes
     X, Y, Z = np.meshgrid(cx, cy, cz, indexing="ij")
@@ -188,7 +244,18 @@ def box_boundary(lower, upper=None, spacing: float | None = None, *,
     points = np.stack([X[keep], Y[keep], Z[keep]], axis=1)
     scale = lattice_volume(spacing, support_factor * spacing, kernel) / spacing ** 3
     volumes = (VX * VY * VZ)[keep] * scale
-    return BoundaryParticles(points, volumes)
+    # the face each particle lies behind: the axis along which it is farthest outside
+    below = lower - points
+    above = points - upper
+    depth = np.maximum(below, above)
+    axis = np.argmax(depth, axis=1)
+    rows = np.arange(points.shape[0])
+    low_side = below[rows, axis] > above[rows, axis]
+    normals = np.zeros_like(points)
+    normals[rows, axis] = np.where(low_side, 1.0, -1.0)  # into the tank
+    face = np.array(BOX_FACES)[2 * axis + np.where(low_side, 0, 1)]
+    friction = np.where(np.isin(face, sorted(slip)), 0.0, 1.0)
+    return BoundaryParticles(points, volumes, normals, friction=friction)
 
 
 # --------------------------------------------------------------------------------------------
@@ -211,6 +278,7 @@ def _triangle_samples(v, f, spacing):
         counts[t + 1] = (n + 1) * (n + 2) // 2
     offsets = np.cumsum(counts)
     out = np.empty((offsets[nf], 3))
+    owner = np.empty(offsets[nf], dtype=np.int64)
     for t in range(nf):
         n = subdiv[t]
         pos = offsets[t]
@@ -221,8 +289,9 @@ def _triangle_samples(v, f, spacing):
                 for k in range(3):
                     out[pos, k] = (v[f[t, 0], k] + u * (v[f[t, 1], k] - v[f[t, 0], k])
                                    + w * (v[f[t, 2], k] - v[f[t, 0], k]))
+                owner[pos] = t
                 pos += 1
-    return out
+    return out, owner
 
 
 @njit(parallel=True, cache=True)
@@ -261,6 +330,44 @@ def _flat_wall_gamma(spacing, h, kind, kernel):
     return (1.0 - rho_fluid) / rho_wall
 
 
+def boundary_volumes(points, spacing: float, *, support_factor: float = 2.0,
+                     kernel: str = "cubic") -> np.ndarray:
+    """Volumes of one layer of boundary particles sampling a surface (m^3).
+
+    Akinci et al. (2012)'s ``1 / sum_k W(x_b - x_k)`` over the samples ``k``, multiplied by the
+    factor that gives a fluid lattice resting ``spacing / 2`` from a flat wall sampled on a
+    square lattice of step ``spacing`` its rest density.  Recompute them when a sampled surface
+    deforms (cloth, an elastic body) and pass them to
+    :meth:`filters.sph.SPHLiquid.move_boundary`.
+
+    Parameters
+    ----------
+    points : (M, 3) array_like
+        Samples of the surface (m), about ``spacing`` apart.
+    spacing : float
+        Fluid particle spacing (m), > 0.
+    support_factor : float
+        Kernel support radius over ``spacing``, in [1, 4].
+    kernel : str
+        Smoothing kernel name.
+
+    Returns
+    -------
+    (M,) float64
+    """
+    x = np.ascontiguousarray(points, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or not np.isfinite(x).all():
+        raise ValueError(f"points must be a finite (M, 3) array, got shape {x.shape}")
+    spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
+    support_factor = check_range("support_factor", support_factor, 1.0, 4.0)
+    kind = kernel_id(kernel)
+    h = support_factor * spacing
+    if x.shape[0] == 0:
+        return np.zeros(0)
+    off, idx = NeighborSearch(h, "auto").build(x).query()
+    return _akinci_volumes(x, off, idx, kind, h) * _flat_wall_gamma(spacing, h, kind, kernel)
+
+
 def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.0,
                   kernel: str = "cubic", check_closed: bool = True) -> BoundaryParticles:
     """One layer of boundary particles sampled on a closed triangle mesh.
@@ -289,6 +396,15 @@ def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.
     Returns
     -------
     BoundaryParticles
+        With the normal of the triangle each sample was taken from (one of the triangles
+        sharing a vertex or an edge), oriented as the faces are (counter-clockwise: outward).
+
+    Notes
+    -----
+    One layer fills at most 0.22 of a particle's kernel (on the surface), too little for the
+    DFSPH wall constraints to act (:mod:`filters.sph.dfsph`): the liquid's pressure keeps it
+    out, but an isolated particle can pass.  A body that must stop spray needs its boundary a
+    support radius thick (several layers).
     """
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3 or not np.isfinite(v).all():
@@ -301,7 +417,7 @@ def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.
         raise ValueError(f"faces must index vertices in [0, {v.shape[0] - 1}]")
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     support_factor = check_range("support_factor", support_factor, 1.0, 4.0)
-    kind = kernel_id(kernel)
+    kernel_id(kernel)  # refuses an unknown name before any work
     if check_closed:
         edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
         _, counts = np.unique(edges, axis=0, return_counts=True)
@@ -313,42 +429,14 @@ def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.
     extent = float(np.ptp(v, axis=0).max())
     if extent / spacing > 20000:
         raise ValueError("mesh is more than 20000 spacings across; increase spacing")
-    samples = _triangle_samples(v, f, spacing)
+    samples, owner = _triangle_samples(v, f, spacing)
     key = np.round(samples / (spacing * 1e-4)).astype(np.int64)
     _, first = np.unique(key, axis=0, return_index=True)
-    points = np.ascontiguousarray(samples[np.sort(first)])
-    h = support_factor * spacing
-    ns = NeighborSearch(h, "auto").build(points)
-    off, idx = ns.query()
-    volumes = _akinci_volumes(points, off, idx, kind, h)
-    volumes *= _flat_wall_gamma(spacing, h, kind, kernel)
-    return BoundaryParticles(points, volumes)
-
-
-def sort_boundary(boundary, cell):
-    """Boundary particles sorted by a grid of cubic cells of edge ``cell`` (m).
-
-    Returns ``(points, volumes, origin, dims, start)``: read-only (M, 3) and (M,) arrays in cell
-    order, the grid's lower corner and cells per axis, and the cell ranges (a stable counting
-    sort, :func:`filters.binning.counting_sort`).  ``boundary`` None or empty gives an empty set.
-    """
-    if boundary is not None and boundary.n_points:
-        bx = boundary.points
-        bv = boundary.volumes
-        blo = bx.min(axis=0)
-        bdims = (np.floor((bx.max(axis=0) - blo) / cell) + 1).astype(np.int64)
-        if float(np.prod(bdims.astype(np.float64))) > 2e8:
-            raise ValueError("boundary spans more than 2e8 grid cells; increase spacing")
-        keys = cell_keys(bx, blo, 1.0 / cell, bdims)
-        bstart, border = counting_sort(keys, int(np.prod(bdims)), numba.get_num_threads())
-        bx = np.ascontiguousarray(bx[border])
-        bv = np.ascontiguousarray(bv[border])
-    else:
-        bx = np.zeros((0, 3))
-        bv = np.zeros(0)
-        blo = np.zeros(3)
-        bdims = np.ones(3, dtype=np.int64)
-        bstart = np.zeros(2, dtype=np.int64)
-    bx.setflags(write=False)
-    bv.setflags(write=False)
-    return bx, bv, blo, bdims, bstart
+    keep = np.sort(first)
+    points = np.ascontiguousarray(samples[keep])
+    tri = v[f]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.sqrt((cross * cross).sum(axis=1))
+    unit = np.divide(cross, length[:, None], out=np.zeros_like(cross), where=length[:, None] > 0)
+    volumes = boundary_volumes(points, spacing, support_factor=support_factor, kernel=kernel)
+    return BoundaryParticles(points, volumes, unit[owner[keep]])

@@ -17,7 +17,8 @@ Both share the per-particle factor (Bender & Koschier 2017, eq. 11, in rest volu
 
 computed once per step after the neighbourhood update.  Boundary particles (Akinci et al. 2012)
 contribute to the density and to the first sum, and are pushed by the fluid particle's own
-pressure term, as SPlisHSPlasH does.
+pressure term, as SPlisHSPlasH does.  A moving boundary's velocity ``v_b`` enters the density
+rate as ``sum_b V_b (v_i - v_b) . grad W_ib``.
 
 The unknown of both solves is ``pi_i = rho0 p_i / rho_i^2`` (Bender & Koschier's ``kappa_i /
 rho_i`` up to ``rho0``); the pressure acceleration is::
@@ -34,10 +35,41 @@ and ``(A pi)_i = scale (sum_j V_j (a_i - a_j) . grad W_ij + a_i . sum_b V_b grad
 change of the density ratio that the current pressures cause.  Clamping ``pi >= 0`` keeps the
 free surface free of tension.  The solvers stop when the **average** predicted compression
 ``mean_i max(-(s_i - (A pi)_i), 0)`` (for divergence: per step, i.e. ``dt mean max(D rho / D t,
-0) / rho0``) is below the tolerance, after at least two iterations (one for divergence, as in
-SPlisHSPlasH).  This is the "pressure-as-unknown" form of the DFSPH iteration that SPlisHSPlasH
+0) / rho0``) is below the tolerance, after at least two iterations (one for divergence), as in
+SPlisHSPlasH.  This is the "pressure-as-unknown" form of the DFSPH iteration that SPlisHSPlasH
 2.x uses; it is equivalent to the paper's stiffness-increment form but keeps a non-negative total
 pressure, which is what the frames report.
+
+**Walls that hold.**  Clamped at zero, the pressure cannot keep a particle that lacks fluid
+neighbours off a wall: a lone particle, or one in a sheet a particle thick, has a density below
+``rho0`` until it overlaps the wall by a third of a spacing, and sinks into it (measured: the
+dam break's thin front leaked 855 particles through the floor and walls of a 10k-particle tank
+in 0.5 s; Akinci's pressure mirroring, Band et al. 2018's extrapolated boundary pressures and
+volume maps (Koschier & Bender 2017) all act through that same clamped pressure).  The density
+solve therefore carries, for every particle within reach of the boundary, one-sided wall
+constraints solved by the same Jacobi sweeps: the part of the kernel a wall fills,
+``phi_ik = sum_{b in k} V_b W_ib``, read as an equivalent distance ``d_ik`` to a flat wall
+(:mod:`filters.sph.wall_profile`), must stay at least ``d_min`` after the step::
+
+    dt (v_i - v_b) . grad phi_ik  <=  (d_ik - d_min) g(d_ik),
+
+linearised with the exact slope ``g`` of a flat wall, so that next to a flat wall the constraint
+is exact in the distance.  It is enforced by a **wall pressure** ``pw_ik >= 0`` that acts
+between particle ``i`` and that wall only, ``a_i -= pw_ik sum_{b in k} V_b grad W_ib`` (the
+boundary's mirrored pressure raised where the fluid's is too low), updated like ``pi`` with the
+diagonal ``scale |grad phi_ik|^2``.  The walls ``k`` of a particle are the whole boundary
+(``d_min`` 0.1 spacings; in a three-wall corner of the fluid lattice the equivalent distance is
+0.15) and each single wall, told apart by the boundary particles' normals (``d_min`` 0.3
+spacings; a particle next to one wall sits at 0.58 on the lattice), so that a particle sliding
+up one wall cannot trade its distance to the floor for a smaller one to the wall.  Wherever the
+fluid pressure keeps the particle away, as in any liquid at rest, the wall pressures stay zero;
+the solve also iterates until no wall constraint is violated by more than 1 % of the kernel.
+The constraints read a wall through the fraction of the kernel it fills, which reaches 1/2 at
+the surface of a boundary at least a support radius thick (the layers of
+:func:`filters.sph.boundary.box_boundary`, a body sampled in layers); one layer of samples
+(:func:`filters.sph.boundary.mesh_boundary`, a cloth) fills at most 0.22 of it, as a flat
+wall half a spacing away, so there the constraints do not act: liquid is held off such a
+sheet by its pressure, an isolated particle is not.
 
 **Warm start** (Bender & Koschier 2017, Sec. 4.4): each solve starts from half of the previous
 step's converged pressure (IISPH's and SPlisHSPlasH's choice; starting from all of it converges
@@ -49,13 +81,11 @@ resting fluid up does not depend on the step.  Both live in the simulation state
 checkpoint resumes bit for bit.  The warm starts are capped (``pi dt^2 <= 2.5e-4``, ``kappa_v <=
 0.5``, SPlisHSPlasH's values) and skipped where the particle is not compressed.
 
-One fused pass per step (:func:`filters.sph.neighbourhood.neighbourhood_pass`) finds the neighbours of the cell-sorted
-particles afresh (a DFSPH step moves particles farther than a Verlet skin could cover) and
-computes densities, ``alpha_i`` and the kernel gradients, stored as one float32 scalar per pair.
-
-All loops are gathers over the particle's own fixed-order neighbour list inside ``prange`` (no
-scatter, no atomics) and every reduction is a per-particle array summed serially, so results are
-bit-identical for any thread count.
+One fused pass per step (:func:`filters.sph.neighbourhood.neighbourhood_pass`) finds the
+neighbours of the cell-sorted particles afresh (a DFSPH step moves particles farther than a
+Verlet skin could cover) and computes densities, ``alpha_i``, the kernel gradients (stored as
+one float32 scalar per pair) and the walls.  The kernels (:mod:`filters.sph.dfsph_kernels`) are
+gathers only, so results are bit-identical for any thread count.
 """
 
 from __future__ import annotations
@@ -63,14 +93,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
-from .neighbourhood import boundary_reach_mask, neighbourhood_pass
+from . import dfsph_kernels as K
+from .neighbourhood import WALL_CLUSTERS, neighbourhood_pass
 from .viscosity import ImplicitViscosity
 
-__all__ = ["DFSPHSolver", "boundary_reach_mask", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
-           "DFSPH_MIN_NEIGHBOURS"]
+__all__ = ["DFSPHSolver", "DFSPH_WARM_START", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
+           "DFSPH_MIN_NEIGHBOURS", "DFSPH_WALL_GAP", "DFSPH_WALL_GAP_SINGLE",
+           "DFSPH_WALL_TOLERANCE"]
 
+#: Fraction of the previous step's pressure each solve starts from (see the module notes).
+DFSPH_WARM_START = 0.5
 #: Cap of the density solver's warm start, as ``pi dt^2`` (dimensionless).
 DFSPH_WARM_START_CAP = 2.5e-4
 #: Cap of the divergence solver's warm start ``kappa_v = pi_v dt`` (m^2/s).
@@ -78,135 +111,15 @@ DFSPH_WARM_START_CAP_V = 0.5
 #: Fewer neighbours (fluid plus boundary within the support) than this: no divergence solve for
 #: that particle (particle deficiency at the free surface; SPlisHSPlasH uses 20 in 3D).
 DFSPH_MIN_NEIGHBOURS = 20
+#: Smallest equivalent distance to the boundary as a whole, in particle spacings.
+DFSPH_WALL_GAP = 0.1
+#: Smallest equivalent distance to any single wall, in particle spacings.
+DFSPH_WALL_GAP_SINGLE = 0.3
+#: Largest wall violation the density solve stops at (fraction of the kernel, ~0.015 spacings).
+DFSPH_WALL_TOLERANCE = 0.01
 _OMEGA = 0.5
 
 
-# --------------------------------------------------------------------------------------------
-# Numba kernels.
-# --------------------------------------------------------------------------------------------
-@njit(parallel=True, cache=True, error_model="numpy")
-def _density_rate(v, x, ntab, ncnt, fw, gsum, out):
-    """``(D rho_i / D t) / rho0 = sum_j V_j (v_i - v_j) . grad W_ij + v_i . sum_b V_b grad
-    W_ib = v_i . gsum_i - sum_j fw_ij v_j . (x_i - x_j)`` (1/s); the boundary is static."""
-    for i in prange(v.shape[0]):
-        xi = x[i, 0]
-        yi = x[i, 1]
-        zi = x[i, 2]
-        s = v[i, 0] * gsum[i, 0] + v[i, 1] * gsum[i, 1] + v[i, 2] * gsum[i, 2]
-        for k in range(ncnt[i]):
-            j = ntab[i, k]
-            s -= fw[i, k] * (v[j, 0] * (xi - x[j, 0]) + v[j, 1] * (yi - x[j, 1])
-                             + v[j, 2] * (zi - x[j, 2]))
-        out[i] = s
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _pressure_accel(pi, x, ntab, ncnt, fw, gsum, a):
-    """``a_i = -sum_j (pi_i + pi_j) V_j grad W_ij - pi_i sum_b V_b grad W_ib
-    = -pi_i gsum_i - sum_j pi_j fw_ij (x_i - x_j)`` (m/s^2)."""
-    for i in prange(pi.shape[0]):
-        xi = x[i, 0]
-        yi = x[i, 1]
-        zi = x[i, 2]
-        p = pi[i]
-        ax = -p * gsum[i, 0]
-        ay = -p * gsum[i, 1]
-        az = -p * gsum[i, 2]
-        for k in range(ncnt[i]):
-            j = ntab[i, k]
-            f = pi[j] * fw[i, k]
-            ax -= f * (xi - x[j, 0])
-            ay -= f * (yi - x[j, 1])
-            az -= f * (zi - x[j, 2])
-        a[i, 0] = ax
-        a[i, 1] = ay
-        a[i, 2] = az
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _jacobi(a, x, src, pi, factor, active, ntab, ncnt, fw, gsum, scale, omega, err):
-    """One relaxed Jacobi update of ``pi`` (see the module docstring); ``err[i]`` gets the
-    predicted compression before the update.  Returns the mean of ``err`` (serial sum)."""
-    n = pi.shape[0]
-    inv = 1.0 / scale
-    for i in prange(n):
-        xi = x[i, 0]
-        yi = x[i, 1]
-        zi = x[i, 2]
-        s = a[i, 0] * gsum[i, 0] + a[i, 1] * gsum[i, 1] + a[i, 2] * gsum[i, 2]
-        for k in range(ncnt[i]):
-            j = ntab[i, k]
-            s -= fw[i, k] * (a[j, 0] * (xi - x[j, 0]) + a[j, 1] * (yi - x[j, 1])
-                             + a[j, 2] * (zi - x[j, 2]))
-        r = src[i] - scale * s
-        err[i] = -r if (r < 0.0 and active[i]) else 0.0
-        pi[i] = max(pi[i] - omega * r * factor[i] * inv, 0.0)
-    total = 0.0
-    for i in range(n):
-        total += err[i]
-    return total / n if n else 0.0
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _density_start(rho, rate, rho0, dt, pi_prev, cap, src, pi, active):
-    """Density solve set-up: source ``1 - rho*/rho0`` with ``rho* = rho + dt D rho / D t`` and
-    the warm start ``pi = 0.5 min(pi_prev, cap / dt^2)`` where compressed, else 0."""
-    inv2 = 1.0 / (dt * dt)
-    for i in prange(rho.shape[0]):
-        adv = rho[i] / rho0 + dt * rate[i]
-        src[i] = 1.0 - adv
-        active[i] = True
-        pi[i] = 0.5 * min(pi_prev[i], cap * inv2) if adv > 1.0 else 0.0
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _divergence_start(rate, nnb, min_nb, dt, kappa_v, cap, src, pi, active):
-    """Divergence solve set-up: source ``-max(D rho / D t, 0) / rho0`` (0 for particles with
-    fewer than ``min_nb`` neighbours) and the warm start ``pi = 0.5 min(kappa_v, cap) / dt``."""
-    inv = 1.0 / dt
-    for i in prange(rate.shape[0]):
-        ok = nnb[i] >= min_nb
-        d = max(rate[i], 0.0) if ok else 0.0
-        src[i] = -d
-        active[i] = ok
-        pi[i] = 0.5 * min(kappa_v[i], cap) * inv if d > 0.0 else 0.0
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _kick(v, a, dt):
-    """``v += dt a``."""
-    for i in prange(v.shape[0]):
-        for c in range(3):
-            v[i, c] += dt * a[i, c]
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _store(pi, scale, kappa):
-    """``kappa = pi * scale`` (the stored warm start)."""
-    for i in prange(pi.shape[0]):
-        kappa[i] = pi[i] * scale
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _drift(x, v, dt):
-    """``x += dt v``; returns ``max |v|`` (m/s)."""
-    n = x.shape[0]
-    vmax = np.zeros(n)
-    for i in prange(n):
-        s = 0.0
-        for c in range(3):
-            x[i, c] += dt * v[i, c]
-            s += v[i, c] * v[i, c]
-        vmax[i] = s
-    best = 0.0
-    for i in range(n):
-        best = max(best, vmax[i])
-    return math.sqrt(best)
-
-
-# --------------------------------------------------------------------------------------------
-# The solver object.
-# --------------------------------------------------------------------------------------------
 class DFSPHSolver:
     """Work arrays and the two DFSPH solves for one fluid (Bender & Koschier 2015, 2017).
 
@@ -228,6 +141,10 @@ class DFSPHSolver:
         Fewest iterations of the density solve (2).
     min_divergence_iterations : int
         Fewest iterations of the divergence solve (1).
+    walls : tuple, optional
+        ``(spacing, inverse_distance, inverse_slope)``: the particle spacing (m) and the tables
+        of :class:`filters.sph.wall_profile.WallProfile`; None: no wall constraints (a liquid
+        without boundary).
 
     Attributes
     ----------
@@ -235,10 +152,14 @@ class DFSPHSolver:
         Iterations of the last solves.
     density_error, divergence_error : float
         Mean errors the last solves reached (same units as the tolerances).
+    wall_violation : float
+        Largest wall violation the last density solve left (fraction of the kernel).
+    wall_pressure : (N, 4) float64
+        The last density solve's wall pressures ``pw`` (m^2/s^2, like ``pi``).
     """
 
     def __init__(self, rest_volume, support, kind, max_density_error, max_divergence_error,
-                 max_iterations, min_iterations=2, min_divergence_iterations=2):
+                 max_iterations, min_iterations=2, min_divergence_iterations=1, walls=None):
         self.volume = float(rest_volume)
         self.support = float(support)
         self.kind = int(kind)
@@ -252,12 +173,19 @@ class DFSPHSolver:
         self.density_error = 0.0
         self.divergence_error = 0.0
         self.viscosity_iterations = 0
+        self.wall_violation = 0.0
+        self.walls = None
+        if walls is not None:
+            spacing, inv_d, inv_s = walls
+            self.walls = (np.array([DFSPH_WALL_GAP, DFSPH_WALL_GAP_SINGLE]) * spacing,
+                          float(spacing), inv_d, inv_s)
         self._n = -1
         self._cap = 40
         self._viscosity = ImplicitViscosity()
 
     def _allocate(self, n, cap):
         if n != self._n:
+            k = WALL_CLUSTERS
             self.factor = np.empty(n)
             self.gsum = np.empty((n, 3))
             self.nnb = np.empty(n, dtype=np.int32)
@@ -272,6 +200,16 @@ class DFSPHSolver:
             self.a = np.empty((n, 3))
             self.fsum = np.empty(n)
             self.bvis = np.empty((n, 6))
+            self.bvv = np.zeros((n, 3))
+            self.vrate = np.zeros(n)
+            self.ncl = np.zeros(n, dtype=np.int32)
+            self.cphi = np.zeros((n, k))
+            self.cgb = np.zeros((n, k, 3))
+            self.cvb = np.zeros((n, k))
+            self.cn = np.zeros((n, k, 3))
+            self.wsrc = np.zeros((n, k))
+            self.wall_pressure = np.zeros((n, k))
+            self.werr = np.zeros(n)
             self._n = n
             self.ntab = None
         if self.ntab is None or self.ntab.shape[1] != cap + 1:
@@ -279,7 +217,7 @@ class DFSPHSolver:
             self.fw = np.empty((n, cap), dtype=np.float32)
 
     def neighbourhood(self, x, start, origin, cell, dims, boundary, mass):
-        """Neighbours, kernel gradients, densities and ``alpha_i`` at positions ``x``.
+        """Neighbours, kernel gradients, densities, ``alpha_i`` and walls at positions ``x``.
 
         Parameters
         ----------
@@ -294,9 +232,8 @@ class DFSPHSolver:
         dims : (3,) int64
             Cells per axis.
         boundary : tuple
-            ``(points, start, origin, cell, dims, mask, volumes, psi)`` of the boundary
-            particles, sorted by their own grid of the same cell edge (``psi = rho0 V_b``, kg;
-            ``mask`` from :func:`boundary_reach_mask`).
+            :meth:`filters.sph.boundary_set.BoundarySet.arrays`, sorted by a grid of the same
+            cell edge.
         mass : float
             Fluid particle mass (kg).
 
@@ -306,13 +243,14 @@ class DFSPHSolver:
             Densities (kg/m^3), an internal array overwritten by the next call.
         """
         n = x.shape[0]
-        xb, bstart, borigin, bcell, bdims, bmask, bvol, bpsi = boundary
+        self._moving = bool(boundary[-1])
         while True:
             self._allocate(n, self._cap)
-            best = neighbourhood_pass(x, start, origin, cell, dims, xb, bstart, borigin, bcell,
-                                  bdims, bmask, bvol, bpsi, self.volume, mass, self.support, self.kind,
-                                  self.ntab, self.ncnt, self.fw, self.gsum, self.factor,
-                                  self.nnb, self.rho, self.fsum, self.bvis)
+            best = neighbourhood_pass(x, start, origin, cell, dims, boundary, self.volume, mass,
+                                      self.support, self.kind, self.ntab, self.ncnt, self.fw,
+                                      self.gsum, self.factor, self.nnb, self.rho, self.fsum,
+                                      self.bvis, self.bvv, self.vrate, self.ncl, self.cphi,
+                                      self.cgb, self.cvb, self.cn)
             if best <= self._cap:
                 break
             self._cap = int(best) + 8  # rare: a compressed particle has more neighbours
@@ -321,19 +259,38 @@ class DFSPHSolver:
 
     def density_rate(self, v):
         """``(D rho_i / D t) / rho0`` (1/s) for velocities ``v`` (after :meth:`neighbourhood`)."""
-        _density_rate(v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.rate)
+        K.density_rate(v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.vrate,
+                       self.rate)
         return self.rate
 
     def _iterate(self, pi, scale, tol, min_iterations):
         it = 0
         err = math.inf
         while it < self.max_iterations and (it < min_iterations or err > tol):
-            _pressure_accel(pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
-            err = _jacobi(self.a, self._x, self.src, pi, self.factor, self.active, self.ntab,
-                          self.ncnt, self.fw, self.gsum, scale, _OMEGA, self.err)
+            K.pressure_accel(pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
+            err = K.jacobi(self.a, self._x, self.src, pi, self.factor, self.active, self.ntab,
+                           self.ncnt, self.fw, self.gsum, scale, _OMEGA, self.err)
             it += 1
             if not math.isfinite(err):
                 break
+        return it, err
+
+    def _iterate_walls(self, pi, scale, tol):
+        pw = self.wall_pressure
+        it = 0
+        err = math.inf
+        worst = math.inf
+        while it < self.max_iterations and (it < self.min_iterations or err > tol
+                                            or worst > DFSPH_WALL_TOLERANCE):
+            K.pressure_accel_wall(pi, pw, self._x, self.ntab, self.ncnt, self.fw, self.gsum,
+                                  self.ncl, self.cgb, self.a)
+            err, worst = K.jacobi_wall(self.a, self._x, self.src, pi, self.factor, self.ntab,
+                                       self.ncnt, self.fw, self.gsum, scale, _OMEGA, self.err,
+                                       self.wsrc, pw, self.ncl, self.cgb, self.werr)
+            it += 1
+            if not (math.isfinite(err) and math.isfinite(worst)):
+                break
+        self.wall_violation = float(worst)
         return it, err
 
     def divergence_solve(self, v, dt, kappa_v):
@@ -349,14 +306,14 @@ class DFSPHSolver:
             Warm start in, converged ``pi_v dt`` out (m^2/s).
         """
         self.density_rate(v)
-        _divergence_start(self.rate, self.nnb, DFSPH_MIN_NEIGHBOURS, dt, kappa_v,
-                          DFSPH_WARM_START_CAP_V, self.src, self.pi_v, self.active)
+        K.divergence_start(self.rate, self.nnb, DFSPH_MIN_NEIGHBOURS, dt, kappa_v,
+                           DFSPH_WARM_START_CAP_V, self.src, self.pi_v, self.active)
         # err is a mean rate (1/s); the tolerance is per step.
         it, err = self._iterate(self.pi_v, dt, self.max_divergence_error / dt,
                                self.min_divergence_iterations)
-        _pressure_accel(self.pi_v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
-        _kick(v, self.a, dt)
-        _store(self.pi_v, dt, kappa_v)
+        K.pressure_accel(self.pi_v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
+        K.kick(v, self.a, dt)
+        K.store(self.pi_v, dt, kappa_v)
         self.divergence_iterations = it
         self.divergence_error = float(err) * dt
 
@@ -384,11 +341,19 @@ class DFSPHSolver:
             The previous step's ``pi`` in (warm start), this step's out (m^2/s^2).
         """
         self.density_rate(v)
-        _density_start(rho, self.rate, rho0, dt, pi_prev, DFSPH_WARM_START_CAP, self.src,
-                       self.pi, self.active)
-        it, err = self._iterate(self.pi, dt * dt, self.max_density_error, self.min_iterations)
-        _pressure_accel(self.pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
-        _kick(v, self.a, dt)
+        K.density_start(rho, self.rate, rho0, dt, pi_prev, DFSPH_WARM_START_CAP,
+                        DFSPH_WARM_START, self.src, self.pi, self.active)
+        if self.walls is None:
+            it, err = self._iterate(self.pi, dt * dt, self.max_density_error, self.min_iterations)
+            K.pressure_accel(self.pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
+        else:
+            gaps, spacing, inv_d, inv_s = self.walls
+            K.wall_start(v, self.ncl, self.cphi, self.cgb, self.cvb, dt, gaps, spacing, inv_d,
+                         inv_s, self.wsrc, self.wall_pressure)
+            it, err = self._iterate_walls(self.pi, dt * dt, self.max_density_error)
+            K.pressure_accel_wall(self.pi, self.wall_pressure, self._x, self.ntab, self.ncnt,
+                                  self.fw, self.gsum, self.ncl, self.cgb, self.a)
+        K.kick(v, self.a, dt)
         pi_prev[:] = self.pi
         self.density_iterations = it
         self.density_error = float(err)
@@ -398,9 +363,10 @@ class DFSPHSolver:
         implicit viscosity solver for SPH fluids", CGF 37(2)): solve ``(I - dt L) v' = v`` by
         conjugate gradients with a block-Jacobi preconditioner, in place.
 
-        Rest volumes make the matrix symmetric positive definite; the boundary acts as a static
-        no-slip wall with ``nu_b``.  Stops at ``|r| <= tolerance |b|`` (relative residual).
-        Returns the number of iterations.
+        Rest volumes make the matrix symmetric positive definite; the boundary acts as a no-slip
+        wall with ``nu_b`` (times each boundary particle's friction factor) that moves with its
+        particles' velocities.  Stops at ``|r| <= tolerance |b|`` (relative residual).  Returns
+        the number of iterations.
 
         Parameters
         ----------
@@ -414,16 +380,17 @@ class DFSPHSolver:
             Kinematic viscosity of the fluid and against the boundary (m^2/s).
         """
         it = self._viscosity.solve(v, x, dt, nu, nu_b, self.ntab, self.ncnt, self.fw,
-                                   self.fsum, self.bvis, self.support, tolerance, max_iterations)
+                                   self.fsum, self.bvis, self.support, tolerance, max_iterations,
+                                   self.bvv if self._moving else None)
         self.viscosity_iterations = it
         return it
 
     @staticmethod
     def kick(v, a, dt):
         """``v += dt a`` in parallel (m/s)."""
-        _kick(v, a, dt)
+        K.kick(v, a, dt)
 
     @staticmethod
     def drift(x, v, dt):
         """``x += dt v`` in parallel; returns ``max |v|`` (m/s)."""
-        return float(_drift(x, v, dt))
+        return float(K.drift(x, v, dt))

@@ -17,7 +17,8 @@ The method (WCSPH)
   mirrored onto them.
 * Artificial viscosity (Monaghan 1992) ``Pi_ij = -alpha c mu_ij / rho_bar_ij`` with
   ``mu_ij = h' v_ij . x_ij / (|x_ij|^2 + 0.01 h'^2)`` for approaching pairs (``h' = h / 2``, the
-  smoothing length), also against the (static) boundary particles, which gives wall friction;
+  smoothing length), also against the (static) boundary particles, which gives wall friction
+  (scaled by each boundary particle's friction factor);
   optional XSPH velocity smoothing (Monaghan 1989) with factor ``xsph``.
 * Surface tension and cohesion of Akinci, Akinci & Teschner (2013): a cohesion force with the
   spline ``C(r)`` (repulsive closer than ``h / 2``, attractive out to ``h``, zero beyond) plus the
@@ -115,13 +116,13 @@ def normals(x, rho, tab, cnt, m, h, kind, nrm):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def accelerations(x, v, rho, p, tab, cnt, xb, btab, bcnt, bpsi, bpr, m, h, kind, alpha,
+def accelerations(x, v, rho, p, tab, cnt, xb, btab, bcnt, bpsi, bpr, bfric, m, h, kind, alpha,
                    alpha_b, c, rho0, st, nrm, g, a):
     """Pressure, viscosity, surface tension and gravity accelerations (m/s^2) into ``a``.
 
     ``bpr[b]`` is ``p_b / rho_b^2`` of boundary particle ``b`` (Adami et al. 2012), or negative
-    for pressure mirroring (``p_b / rho_b^2 = p_i / rho_i^2``, Akinci et al. 2012).
-    Returns ``max |a|``.
+    for pressure mirroring (``p_b / rho_b^2 = p_i / rho_i^2``, Akinci et al. 2012); ``bfric[b]``
+    its friction factor (multiplies ``alpha_b``).  Returns ``max |a|``.
     """
     n = x.shape[0]
     hs = 0.5 * h
@@ -172,7 +173,7 @@ def accelerations(x, v, rho, p, tab, cnt, xb, btab, bcnt, bpsi, bpr, m, h, kind,
             vd = v[i, 0] * dx + v[i, 1] * dy + v[i, 2] * dz
             if vd < 0.0 and alpha_b > 0.0:
                 mu = hs * vd / (r2 + eps)
-                fac += bpsi[b] * alpha_b * c * mu / ri
+                fac += bpsi[b] * alpha_b * bfric[b] * c * mu / ri
             fw = fac * kernel_dw(kind, r, h) / r
             ax += fw * dx
             ay += fw * dy

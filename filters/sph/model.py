@@ -59,7 +59,8 @@ class SPHModel:
     boundary_pressure : {"adami", "mirror"}
         How boundary particles get a pressure.
     boundary_points, boundary_volumes : read-only arrays
-        Boundary particles sorted by cell, (M, 3) m and (M,) m^3.
+        The boundary particles the liquid was built with, (M, 3) m and (M,) m^3 (where they
+        are now: :attr:`SPHLiquid.boundary`).
     solver : {"wcsph", "dfsph"}
         Pressure solver.
     max_density_error, max_divergence_error : float

@@ -2,8 +2,10 @@
 
 Both validate every parameter before sampling a single particle, so a bad value fails fast with a
 ``ValueError`` naming it.  Fluid particles sit at the cell centres of a lattice of step
-``spacing`` aligned with the tank's inner walls, and the walls are :func:`filters.sph.boundary.box_boundary`
-layers on the same lattice, so the fluid starts exactly at rest density, corners included.
+``spacing`` aligned with the tank's inner walls, and the walls are
+:func:`filters.sph.boundary.box_boundary` layers on the same lattice, so the fluid starts
+exactly at rest density, corners included.  With DFSPH the dam break's column starts with its
+hydrostatic pressure and the drop's pool starts settled (:mod:`filters.sph.settle`).
 """
 
 from __future__ import annotations
@@ -12,12 +14,13 @@ import math
 
 import numpy as np
 
-from .boundary import box_boundary
 from ..memory import check_memory
-from .liquid import SPHLiquid, default_support_factor
 from ..validation import check_range
+from .boundary import box_boundary
+from .liquid import SPHLiquid, default_support_factor
+from .settle import hydrostatic_pressure, settle
 
-__all__ = ["dam_break_liquid", "drop_liquid", "MAX_PARTICLES"]
+__all__ = ["dam_break_liquid", "drop_liquid", "MAX_PARTICLES", "SETTLE_TIME", "SETTLE_DAMPING"]
 
 #: Largest particle count the set-ups accept (fluid plus boundary).
 MAX_PARTICLES = 50_000_000
@@ -56,7 +59,7 @@ def _check_count(fluid, tank, spacing, layers=2):
 
 
 def dam_break_liquid(*, column_width=0.2, column_height=None, tank_length=None, depth=0.1,
-                     tank_height=None, spacing=0.01, **sph_options) -> SPHLiquid:
+                     tank_height=None, spacing=0.01, free_slip=(), **sph_options) -> SPHLiquid:
     """A water column collapsing in a closed tank (the dam break of Martin & Moyce 1952).
 
     The column of width ``a = column_width`` (x) and height ``column_height`` (z, default ``2 a``)
@@ -77,10 +80,13 @@ def dam_break_liquid(*, column_width=0.2, column_height=None, tank_length=None, 
         (m), >= ``column_height``; default ``1.5 * column_height``.
     spacing : float
         Particle spacing (m), > 0, at most half of the column's smallest side.
+    free_slip : iterable of str
+        Tank faces without friction (:data:`filters.sph.boundary.BOX_FACES`; ``"y"`` for both
+        side walls: a column a few particles deep between them is the quasi-2D experiment).
     **sph_options
         Passed to :class:`filters.sph.SPHLiquid` (``container`` defaults to the tank's inner
-        box; ``viscosity``, ``xsph``, ``surface_tension``,
-        ``cfl``, ``threads`` ...).
+        box, a DFSPH column starts with its hydrostatic pressure; ``viscosity``, ``xsph``,
+        ``surface_tension``, ``cfl``, ``threads`` ...).
 
     Returns
     -------
@@ -112,8 +118,12 @@ def dam_break_liquid(*, column_width=0.2, column_height=None, tank_length=None, 
     kernel = sph_options.get("kernel", "cubic")
     support_factor = sph_options.get("support_factor") or default_support_factor(kernel)
     walls = box_boundary((0.0, 0.0, 0.0), (length, depth, height), spacing,
-                         support_factor=support_factor, kernel=kernel)
+                         support_factor=support_factor, kernel=kernel, free_slip=free_slip)
     sph_options.setdefault("container", ((0.0, 0.0, 0.0), (length, depth, height)))
+    if sph_options.get("solver", "wcsph") == "dfsph":
+        sph_options.setdefault("initial_pressure", hydrostatic_pressure(
+            x, spacing, sph_options.get("gravity", (0.0, 0.0, -9.81)),
+            sph_options.get("rest_density", 1000.0)))
     return SPHLiquid(x, spacing=spacing, boundary=walls, **sph_options)
 
 
@@ -137,7 +147,10 @@ def drop_liquid(*, tank_length=0.4, tank_width=0.4, tank_height=0.4, pool_depth=
     spacing : float
         Particle spacing (m), > 0.
     **sph_options
-        Passed to :class:`filters.sph.SPHLiquid`.
+        Passed to :class:`filters.sph.SPHLiquid`.  With ``solver="dfsph"`` the pool starts
+        settled (:func:`filters.sph.settle.settle` for 1 s of simulated time, once per process
+        for the same pool and settings) with its pressure: its surface stays within 0.01
+        spacings over the first half second when nothing falls in (tested).
 
     Returns
     -------
@@ -177,12 +190,49 @@ def drop_liquid(*, tank_length=0.4, tank_width=0.4, tank_height=0.4, pool_depth=
     cube = _lattice(center - radius, center + radius, spacing)
     sphere = cube[((cube - center) ** 2).sum(axis=1) <= radius * radius]
     parts.append(sphere)
-    x = np.concatenate(parts)
-    v = np.zeros_like(x)
-    v[x.shape[0] - sphere.shape[0]:, 2] = -speed
     kernel = sph_options.get("kernel", "cubic")
     support_factor = sph_options.get("support_factor") or default_support_factor(kernel)
     walls = box_boundary((0.0, 0.0, 0.0), (length, width, height), spacing,
                          support_factor=support_factor, kernel=kernel)
     sph_options.setdefault("container", ((0.0, 0.0, 0.0), (length, width, height)))
+    pressure = None
+    if pool > 0.0 and sph_options.get("solver", "wcsph") == "dfsph":
+        parts[0], pool_pressure = _settled_pool(parts[0], walls, spacing, sph_options)
+        pressure = np.concatenate([pool_pressure, np.zeros(sphere.shape[0])])
+        sph_options.setdefault("initial_pressure", pressure)
+    x = np.concatenate(parts)
+    v = np.zeros_like(x)
+    v[x.shape[0] - sphere.shape[0]:, 2] = -speed
     return SPHLiquid(x, v, spacing=spacing, boundary=walls, **sph_options)
+
+
+#: Settled pools of this process, by the pool's particles, walls and liquid settings.
+_SETTLED: dict = {}
+#: Simulated time (s) a pool settles for, and the velocity damping per step while it does.
+SETTLE_TIME = 1.0
+SETTLE_DAMPING = 0.05
+
+
+def _settled_pool(x, walls, spacing, sph_options):
+    """The pool's particles after :func:`filters.sph.settle.settle` (DFSPH), and their
+    pressure (Pa), in the lattice's order; computed once per process for the same pool."""
+    try:
+        key = (x.tobytes(), walls.points.tobytes(), spacing,
+               repr(sorted((k, v) for k, v in sph_options.items() if k != "initial_pressure")))
+        hash(key)
+    except TypeError:  # e.g. an external field object: settle afresh
+        key = None
+    if key is not None and key in _SETTLED:
+        settled, pressure = _SETTLED[key]
+        return settled.copy(), pressure.copy()
+    options = {k: v for k, v in sph_options.items() if k not in ("initial_pressure", "external")}
+    options["initial_pressure"] = hydrostatic_pressure(
+        x, spacing, options.get("gravity", (0.0, 0.0, -9.81)), options.get("rest_density", 1000.0))
+    pool = SPHLiquid(x, spacing=spacing, boundary=walls, **options)
+    settle(pool, max_time=SETTLE_TIME, damping=SETTLE_DAMPING)
+    order = np.argsort(pool.state.extra["id"])
+    settled = np.ascontiguousarray(pool.state.positions[order])
+    pressure = np.ascontiguousarray(pool.state.extra["pressure"][order])
+    if key is not None:
+        _SETTLED[key] = (settled, pressure)
+    return settled.copy(), pressure.copy()

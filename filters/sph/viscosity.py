@@ -108,8 +108,8 @@ def _xpby(z, beta, p):
 class ImplicitViscosity:
     """Workspace and conjugate-gradient loop of the implicit viscosity solve.
 
-    Rest volumes make ``I - dt L`` symmetric positive definite; the boundary acts as a static
-    no-slip wall with its own viscosity.  The preconditioner is block Jacobi on approximate
+    Rest volumes make ``I - dt L`` symmetric positive definite; the boundary acts as a no-slip
+    wall with its own viscosity, moving with its particles' velocities.  The preconditioner is block Jacobi on approximate
     diagonal blocks (:func:`_visc_precond`).
     """
 
@@ -117,7 +117,7 @@ class ImplicitViscosity:
         self._n = -1
 
     def solve(self, v, x, dt, nu, nu_b, ntab, ncnt, fw, fsum, bvis, h, tolerance=1e-3,
-              max_iterations=100):
+              max_iterations=100, bvv=None):
         """Replace the velocities ``v`` (N, 3, m/s) by the solution of ``(I - dt L) v' = v``.
 
         Parameters
@@ -137,6 +137,9 @@ class ImplicitViscosity:
             Stop at ``|r| <= tolerance |b|`` (relative residual).
         max_iterations : int
             Most CG iterations.
+        bvv : (N, 3) float64, optional
+            The moving boundary's velocity term ``sum_b f_b V_b (W'(r) / r) (v_b . x_ib) x_ib /
+            (r^2 + 0.01 h'^2)`` (1/s) of the neighbourhood pass; None: a static boundary.
 
         Returns
         -------
@@ -157,6 +160,8 @@ class ImplicitViscosity:
             self._n = n
         pinv, r, z, p, q = self._pinv, self._r, self._z, self._p, self._q
         b = v.copy()
+        if bvv is not None:  # (I - dt L) v' = v with the boundary moving: b = v - cb bvv
+            _axpy(b, -cb, bvv)
         _visc_precond(fsum, bvis, cf, cb, pinv)
         _visc_apply(v, x, ntab, ncnt, fw, bvis, cf, cb, h, q)
         r[:] = b
