@@ -41,41 +41,69 @@ CELL_OVER_REACH = 1.0
 #: How far beyond a triangle (in cells) the cells listing it reach.
 PAD = 1e-5
 
+#: A line is tested against a triangle only within this factor of its circumscribing sphere
+#: about the centroid: 1e-3 beyond it, far more than the edge slack (2e-9 of an edge) and the
+#: rounding of the distance, so the skip never drops a crossing.
+BOUND_GROWTH = 1.001
+
 #: Triangles per chunk of the parallel binning.
 _CHUNK = 4096
 
 
+@njit(parallel=True, cache=True)
+def _corner_edges(V, T):
+    """(T, 13) float64: each triangle's first corner ``a`` and edges ``b - a``, ``c - a`` (the
+    operands of the crossing test, stored together so that a test reads one row), then its
+    centroid and the square of ``BOUND_GROWTH`` times its largest centroid-corner distance
+    (a line farther than that from the centroid cannot cross it: the test is skipped)."""
+    E = np.empty((T.shape[0], 13))
+    for f in prange(T.shape[0]):
+        a, b, c = T[f, 0], T[f, 1], T[f, 2]
+        for axis in range(3):
+            E[f, axis] = V[a, axis]
+            E[f, 3 + axis] = V[b, axis] - V[a, axis]
+            E[f, 6 + axis] = V[c, axis] - V[a, axis]
+            E[f, 9 + axis] = (V[a, axis] + V[b, axis] + V[c, axis]) / 3.0
+        r2 = 0.0
+        for corner in (a, b, c):
+            d2 = 0.0
+            for axis in range(3):
+                d2 += (V[corner, axis] - E[f, 9 + axis]) ** 2
+            r2 = max(r2, d2)
+        E[f, 12] = BOUND_GROWTH * BOUND_GROWTH * r2
+    return E
+
+
 @njit(cache=True, inline="always")
-def _crossing(px, py, pz, dx, dy, dz, V, T, f):
-    """``t`` where the line ``p + t d`` crosses triangle ``f`` (Möller & Trumbore 1997, both
-    sides), or infinity."""
-    a = T[f, 0]
-    e1x = V[T[f, 1], 0] - V[a, 0]
-    e1y = V[T[f, 1], 1] - V[a, 1]
-    e1z = V[T[f, 1], 2] - V[a, 2]
-    e2x = V[T[f, 2], 0] - V[a, 0]
-    e2y = V[T[f, 2], 1] - V[a, 1]
-    e2z = V[T[f, 2], 2] - V[a, 2]
+def _crossing(px, py, pz, dx, dy, dz, E, f):
+    """``t`` where the line ``p + t d`` crosses triangle ``f`` (row ``f`` of
+    :func:`_corner_edges`; Möller & Trumbore 1997, both sides), or infinity.
+
+    Every quantity is computed whatever the others (no early exit): the tests' outcomes are
+    data-dependent and mispredicted branches cost more than the arithmetic they skip."""
+    e1x = E[f, 3]
+    e1y = E[f, 4]
+    e1z = E[f, 5]
+    e2x = E[f, 6]
+    e2y = E[f, 7]
+    e2z = E[f, 8]
     qx = dy * e2z - dz * e2y
     qy = dz * e2x - dx * e2z
     qz = dx * e2y - dy * e2x
     det = e1x * qx + e1y * qy + e1z * qz
-    if det == 0.0:
-        return math.inf
-    inv = 1.0 / det
-    sx = px - V[a, 0]
-    sy = py - V[a, 1]
-    sz = pz - V[a, 2]
+    inv = 1.0 / (det if det != 0.0 else 1.0)
+    sx = px - E[f, 0]
+    sy = py - E[f, 1]
+    sz = pz - E[f, 2]
     u = (sx * qx + sy * qy + sz * qz) * inv
-    if u < -EDGE_SLACK or u > 1.0 + EDGE_SLACK:
-        return math.inf
     rx = sy * e1z - sz * e1y
     ry = sz * e1x - sx * e1z
     rz = sx * e1y - sy * e1x
     v = (dx * rx + dy * ry + dz * rz) * inv
-    if v < -EDGE_SLACK or u + v > 1.0 + EDGE_SLACK:
-        return math.inf
-    return (e2x * rx + e2y * ry + e2z * rz) * inv
+    t = (e2x * rx + e2y * ry + e2z * rz) * inv
+    inside = ((det != 0.0) & (u >= -EDGE_SLACK) & (u <= 1.0 + EDGE_SLACK) & (v >= -EDGE_SLACK)
+              & (u + v <= 1.0 + EDGE_SLACK))
+    return t if inside else math.inf
 
 
 # ---------------------------------------------------------------------------------------------
@@ -205,10 +233,19 @@ def _bin_triangles(V, T, origin, h, dims):
 # The walk
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _visit(cell, px, py, pz, dx, dy, dz, reach, start, items, V, T, best, best_abs):
-    """The best crossing so far updated with the triangles of ``cell``."""
+def _visit(cell, px, py, pz, dx, dy, dz, dd, reach, start, items, E, best, best_abs):
+    """The best crossing so far updated with the triangles of ``cell`` (``dd = |d|^2``)."""
     for k in range(start[cell], start[cell + 1]):
-        t = _crossing(px, py, pz, dx, dy, dz, V, T, items[k])
+        f = items[k]
+        wx = E[f, 9] - px
+        wy = E[f, 10] - py
+        wz = E[f, 11] - pz
+        cx = wy * dz - wz * dy
+        cy = wz * dx - wx * dz
+        cz = wx * dy - wy * dx
+        if cx * cx + cy * cy + cz * cz > E[f, 12] * dd:
+            continue  # the line passes outside the triangle's bounding sphere
+        t = _crossing(px, py, pz, dx, dy, dz, E, f)
         a = abs(t)
         if a <= reach and (a < best_abs or (a == best_abs and t > best)):
             best_abs = a
@@ -217,26 +254,34 @@ def _visit(cell, px, py, pz, dx, dy, dz, reach, start, items, V, T, best, best_a
 
 
 @njit(cache=True, inline="always")
-def _first_boundary(q, e, c, h, forward):
-    """Parameter along ``+-e`` (``forward``: along ``+e``) at which the walk leaves cell ``c``
-    through its next face along this axis, from the local coordinate ``q``; inf if ``e == 0``."""
+def _first_boundary(q, e, inv, c, h, forward):
+    """Parameter along ``+-e`` (``forward``: along ``+e``; ``inv = 1 / e``) at which the walk
+    leaves cell ``c`` through its next face along this axis, from the local coordinate ``q``;
+    inf if ``e == 0``. (The walk's parameters only choose cells: their rounding is covered by
+    PAD, the crossings' ``t`` come from the crossing test.)"""
     if e == 0.0:
         return math.inf
     if forward:
-        return ((c + (1 if e > 0.0 else 0)) * h - q) / e
-    return ((c + (1 if e < 0.0 else 0)) * h - q) / -e
+        return ((c + (1 if e > 0.0 else 0)) * h - q) * inv
+    return (q - (c + (1 if e < 0.0 else 0)) * h) * inv
 
 
 @njit(parallel=True, cache=True)
-def _walk_all(p, d, start, items, origin, h, dims, V, T, reach, out):
+def _walk_all(p, d, rows, start, items, origin, h, dims, E, reach, out):
     nx, ny, nz = dims[0], dims[1], dims[2]
-    for i in prange(p.shape[0]):
+    inv_h = 1.0 / h
+    for r in prange(rows.shape[0]):
+        i = rows[r]
         px = p[i, 0] - origin[0]  # grid coordinates for the walk
         py = p[i, 1] - origin[1]
         pz = p[i, 2] - origin[2]
         dx = d[i, 0]
         dy = d[i, 1]
         dz = d[i, 2]
+        dd = dx * dx + dy * dy + dz * dz
+        ix = 1.0 / dx if dx != 0.0 else math.inf
+        iy = 1.0 / dy if dy != 0.0 else math.inf
+        iz = 1.0 / dz if dz != 0.0 else math.inf
         # the segment |t| <= reach clipped to the grid's box [0, dims h]
         ta = -reach
         tb = reach
@@ -244,39 +289,40 @@ def _walk_all(p, d, start, items, origin, h, dims, V, T, reach, out):
         for axis in range(3):
             q = px if axis == 0 else (py if axis == 1 else pz)
             e = dx if axis == 0 else (dy if axis == 1 else dz)
+            inv = ix if axis == 0 else (iy if axis == 1 else iz)
             top = dims[axis] * h
             if e == 0.0:
                 inside = inside and 0.0 <= q <= top
             else:
-                t1 = -q / e
-                t2 = (top - q) / e
+                t1 = -q * inv
+                t2 = (top - q) * inv
                 ta = max(ta, min(t1, t2))
                 tb = min(tb, max(t1, t2))
         out[i] = np.nan
         if not inside or ta > tb:
             continue
         ts = min(max(0.0, ta), tb)  # the segment's point nearest t = 0
-        cx = min(max(int(math.floor((px + ts * dx) / h)), 0), nx - 1)
-        cy = min(max(int(math.floor((py + ts * dy) / h)), 0), ny - 1)
-        cz = min(max(int(math.floor((pz + ts * dz) / h)), 0), nz - 1)
+        cx = min(max(int(math.floor((px + ts * dx) * inv_h)), 0), nx - 1)
+        cy = min(max(int(math.floor((py + ts * dy) * inv_h)), 0), ny - 1)
+        cz = min(max(int(math.floor((pz + ts * dz) * inv_h)), 0), nz - 1)
         best, best_abs = _visit((cz * ny + cy) * nx + cx, p[i, 0], p[i, 1], p[i, 2], dx, dy, dz,
-                                reach, start, items, V, T, np.nan, math.inf)
+                                dd, reach, start, items, E, np.nan, math.inf)
         # forward (t from ts up to tb) and backward (t from ts down to ta) walks: per axis the
         # parameter of the next face and the parameter per cell (Amanatides & Woo 1987)
         sx = 1 if dx > 0.0 else -1
         sy = 1 if dy > 0.0 else -1
         sz = 1 if dz > 0.0 else -1
-        stx = h / abs(dx) if dx != 0.0 else math.inf
-        sty = h / abs(dy) if dy != 0.0 else math.inf
-        stz = h / abs(dz) if dz != 0.0 else math.inf
+        stx = h * abs(ix)
+        sty = h * abs(iy)
+        stz = h * abs(iz)
         fx, fy, fz = cx, cy, cz
-        tfx = _first_boundary(px, dx, cx, h, True)
-        tfy = _first_boundary(py, dy, cy, h, True)
-        tfz = _first_boundary(pz, dz, cz, h, True)
+        tfx = _first_boundary(px, dx, ix, cx, h, True)
+        tfy = _first_boundary(py, dy, iy, cy, h, True)
+        tfz = _first_boundary(pz, dz, iz, cz, h, True)
         bx, by, bz = cx, cy, cz
-        tbx = _first_boundary(px, dx, cx, h, False)
-        tby = _first_boundary(py, dy, cy, h, False)
-        tbz = _first_boundary(pz, dz, cz, h, False)
+        tbx = _first_boundary(px, dx, ix, cx, h, False)
+        tby = _first_boundary(py, dy, iy, cy, h, False)
+        tbz = _first_boundary(pz, dz, iz, cz, h, False)
         forward_end = tb if ts >= 0.0 else -math.inf
         backward_end = -ta if ts <= 0.0 else -math.inf
         while True:
@@ -298,7 +344,7 @@ def _walk_all(p, d, start, items, origin, h, dims, V, T, reach, out):
                     tfz += stz
                 if 0 <= fx < nx and 0 <= fy < ny and 0 <= fz < nz:
                     best, best_abs = _visit((fz * ny + fy) * nx + fx, p[i, 0], p[i, 1], p[i, 2],
-                                            dx, dy, dz, reach, start, items, V, T, best,
+                                            dx, dy, dz, dd, reach, start, items, E, best,
                                             best_abs)
                 else:
                     forward_end = -math.inf
@@ -314,7 +360,7 @@ def _walk_all(p, d, start, items, origin, h, dims, V, T, reach, out):
                     tbz += stz
                 if 0 <= bx < nx and 0 <= by < ny and 0 <= bz < nz:
                     best, best_abs = _visit((bz * ny + by) * nx + bx, p[i, 0], p[i, 1], p[i, 2],
-                                            dx, dy, dz, reach, start, items, V, T, best,
+                                            dx, dy, dz, dd, reach, start, items, E, best,
                                             best_abs)
                 else:
                     backward_end = -math.inf
@@ -363,20 +409,35 @@ class TriangleGrid:
         keys, owner = _bin_triangles(V, self.triangles, self.origin, cell, self.dims)
         self.start, order = counting_sort(keys, int(np.prod(self.dims)), 2)
         self.items = owner[order]
+        self.corner_edges = _corner_edges(V, self.triangles)
 
-    def offsets(self, points, directions):
-        """:func:`normal_offsets` of ``points`` along ``directions`` to this mesh: (P,) float64,
-        NaN where a line crosses nothing within the reach."""
+    def offsets(self, points, directions, *, only=None):
+        """:func:`normal_offsets` of ``points`` along ``directions`` to this mesh.
+
+        Parameters
+        ----------
+        points, directions : (P, 3) float64
+            Line origins (m) and directions.
+        only : (M,) int, optional
+            Cast the lines of these rows only (the others' results are NaN).
+
+        Returns
+        -------
+        (P,) float64
+            NaN where a line crosses nothing within the reach.
+        """
         p = check_points("points", points)
         d = check_points("directions", directions)
         if d.shape != p.shape:
             raise ValueError(f"directions must have the shape of points {p.shape}, got "
                              f"{d.shape}")
+        rows = np.arange(p.shape[0]) if only is None else np.asarray(only, np.int64).reshape(-1)
+        if rows.size and (rows.min() < 0 or rows.max() >= p.shape[0]):
+            raise ValueError(f"only must index the {p.shape[0]} points")
         out = np.full(p.shape[0], np.nan)
-        if p.shape[0] == 0 or self.start is None:
-            return out
-        _walk_all(p, d, self.start, self.items, self.origin, self.cell, self.dims,
-                  self.vertices, self.triangles, self.reach, out)
+        if rows.size and self.start is not None:
+            _walk_all(p, d, rows, self.start, self.items, self.origin, self.cell, self.dims,
+                      self.corner_edges, self.reach, out)
         return out
 
 

@@ -87,7 +87,8 @@ def smooth_across_frames(points, triangles, others, weights, reach: float, *, no
     p = check_points("points", points)
     t = check_triangles("triangles", triangles, p.shape[0], allow_empty=True,
                         allow_degenerate=True)
-    n = vertex_normals(p, t) if normals is None else check_points("normals", normals)
+    n = _vertex_normals(p, np.ascontiguousarray(t, np.int64)) if normals is None else (
+        check_points("normals", normals))
     if n.shape != p.shape:
         raise ValueError(f"normals must have the shape of points {p.shape}, got {n.shape}")
     reach = check_range("reach", reach, 0.0, math.inf, low_inclusive=False)
@@ -115,8 +116,7 @@ def smooth_across_frames(points, triangles, others, weights, reach: float, *, no
             raise ValueError(f"moved points must have the shape of points {p.shape}, got "
                              f"{moved.shape}")
         # a held vertex's offset is zero whatever it finds: only the others cast their lines
-        found = np.full(p.shape[0], np.nan)
-        found[free] = grid.offsets(moved[free], n[free])
+        found = grid.offsets(moved, n, only=free)
         ok = np.isfinite(found)
         shift[ok] += wj * found[ok]
         total[ok] += wj

@@ -115,7 +115,14 @@ def test_lines_along_the_fan_and_through_its_apex_find_the_wall():
 def test_a_grid_built_once_serves_many_casts_and_smoothing_takes_it():
     p, d, V, T = scene(4)
     grid = TriangleGrid(V, T, 0.05)
-    assert np.array_equal(grid.offsets(p, d), normal_offsets(p, d, V, T, 0.05), equal_nan=True)
+    every = normal_offsets(p, d, V, T, 0.05)
+    assert np.array_equal(grid.offsets(p, d), every, equal_nan=True)
+    some = np.arange(3, len(p), 7)
+    partial = grid.offsets(p, d, only=some)
+    assert np.array_equal(partial[some], every[some], equal_nan=True)
+    assert np.isnan(np.delete(partial, some)).all() and np.isfinite(partial[some]).any()
+    with pytest.raises(ValueError, match="only"):
+        grid.offsets(p, d, only=[len(p)])
     src, st = uv_sphere(0.29, n=16)
     n = vertex_normals(src, st)
     by_mesh = smooth_across_frames(src, st, [(p, V, T)], [0.5, 0.5], 0.05, normals=n)
