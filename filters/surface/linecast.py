@@ -136,6 +136,28 @@ def _clip_plane(src, n, axis, value, keep_above, dst):
 
 
 @njit(cache=True, inline="always")
+def _band_extent(src, n, axis, lo, hi, along):
+    """Extent along ``along`` of polygon ``src[:n]`` clipped to ``lo <= x[axis] <= hi``: the
+    clipped polygon's vertices (those inside, and the edges' crossings of the two planes),
+    without building it; ``(inf, -inf)`` when empty."""
+    first = math.inf
+    last = -math.inf
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        ca = src[i, axis]
+        cb = src[j, axis]
+        if lo <= ca <= hi:
+            first = min(first, src[i, along])
+            last = max(last, src[i, along])
+        for value in (lo, hi):
+            if (ca < value) != (cb < value) and ca != cb:
+                x = src[i, along] + (value - ca) / (cb - ca) * (src[j, along] - src[i, along])
+                first = min(first, x)
+                last = max(last, x)
+    return first, last
+
+
+@njit(cache=True, inline="always")
 def _cell_span(V, T, f, axis, origin, h, n):
     """Cells along ``axis`` of triangle ``f``'s box grown by PAD cells, clamped to the grid."""
     a = min(V[T[f, 0], axis], V[T[f, 1], axis], V[T[f, 2], axis])
@@ -170,7 +192,6 @@ def _triangle_cells(V, T, f, origin, h, dims, out, write, scratch):
     tri = scratch[0]
     tmp = scratch[1]
     slab = scratch[2]
-    row = scratch[3]
     for c in range(3):
         for axis in range(3):
             tri[c, axis] = (V[T[f, c], axis] - origin[axis]) / h  # in cells
@@ -185,17 +206,11 @@ def _triangle_cells(V, T, f, origin, h, dims, out, write, scratch):
             lo = min(lo, slab[i, 1])
             hi = max(hi, slab[i, 1])
         for y in range(max(int(math.floor(lo - PAD)), y0), min(int(math.floor(hi + PAD)), y1) + 1):
-            k = _clip_plane(slab, m, 1, y - PAD, True, tmp)
-            k = _clip_plane(tmp, k, 1, y + 1.0 + PAD, False, row)
-            if k == 0:
+            first, last = _band_extent(slab, m, 1, y - PAD, y + 1.0 + PAD, 0)
+            if first > last:
                 continue
-            lo = math.inf
-            hi = -math.inf
-            for i in range(k):
-                lo = min(lo, row[i, 0])
-                hi = max(hi, row[i, 0])
-            for x in range(max(int(math.floor(lo - PAD)), x0),
-                           min(int(math.floor(hi + PAD)), x1) + 1):
+            for x in range(max(int(math.floor(first - PAD)), x0),
+                           min(int(math.floor(last + PAD)), x1) + 1):
                 if write:
                     out[n] = (z * ny + y) * nx + x
                 n += 1
@@ -210,7 +225,7 @@ def _bin_triangles(V, T, origin, h, dims):
     counts = np.empty(nt, np.int64)
     none = np.empty(0, np.int64)
     for c in prange(chunks):
-        scratch = np.empty((4, 12, 3))  # a clipped triangle has at most 7 vertices
+        scratch = np.empty((3, 12, 3))  # a clipped triangle has at most 7 vertices
         for f in range(c * _CHUNK, min(nt, (c + 1) * _CHUNK)):
             counts[f] = _triangle_cells(V, T, f, origin, h, dims, none, False, scratch)
     first = np.empty(nt + 1, np.int64)
@@ -220,9 +235,9 @@ def _bin_triangles(V, T, origin, h, dims):
         total += counts[f]
     first[nt] = total
     keys = np.empty(total, np.int64)
-    owner = np.empty(total, np.int64)
+    owner = np.empty(total, np.int32)
     for c in prange(chunks):
-        scratch = np.empty((4, 12, 3))
+        scratch = np.empty((3, 12, 3))
         for f in range(c * _CHUNK, min(nt, (c + 1) * _CHUNK)):
             _triangle_cells(V, T, f, origin, h, dims, keys[first[f]:first[f + 1]], True, scratch)
             owner[first[f]:first[f + 1]] = f
@@ -407,7 +422,8 @@ class TriangleGrid:
         self.cell = cell
         self.dims = (np.floor(size / cell) + 1.0).astype(np.int64)
         keys, owner = _bin_triangles(V, self.triangles, self.origin, cell, self.dims)
-        self.start, order = counting_sort(keys, int(np.prod(self.dims)), 2)
+        # one chunk: half the scratch of two (fresh memory costs here as much as the sort)
+        self.start, order = counting_sort(keys, int(np.prod(self.dims)), 1)
         self.items = owner[order]
         self.corner_edges = _corner_edges(V, self.triangles)
 
