@@ -62,7 +62,8 @@ def _mesh(path):
 
 
 #: What recent tasks read (a serial pass reads every frame for ``2 K + 1`` tasks in a row):
-#: (kind, path, mtime, size, extra) -> value, the oldest dropped beyond a window's worth.
+#: (kind, path, inode, mtime, size, extra) -> value (frames are written by an atomic rename:
+#: a rewritten file is a new inode), the oldest dropped beyond a window's worth.
 _RECENT: OrderedDict = OrderedDict()
 _RECENT_LOCK = threading.Lock()
 
@@ -71,7 +72,7 @@ def _recent(kind, path, make, keep, *extra):
     """``make(path, *extra)``, or what it returned for the same unchanged file lately (the
     ``keep`` latest kept)."""
     stat = os.stat(path)
-    key = (kind, str(path), stat.st_mtime_ns, stat.st_size, *extra)
+    key = (kind, str(path), stat.st_ino, stat.st_mtime_ns, stat.st_size, *extra)
     with _RECENT_LOCK:
         if key in _RECENT:
             _RECENT.move_to_end(key)

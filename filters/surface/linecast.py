@@ -8,12 +8,14 @@ The search walks the line through a uniform grid (Amanatides & Woo 1987), outwar
 0`` in both directions at once, nearest cell first, and stops as soon as the next cell starts
 farther than the best crossing found: a line that meets the mesh near its origin (the common
 case: a vertex moved to a neighbouring frame's surface) tests the triangles of one or two
-cells. Each triangle is listed in every cell within ``PAD`` cells of it, found exactly rather
-than from its bounding box (the triangle clipped slab by slab and row by row), so the long
-thin fans of a tank wall's cut faces occupy the cells along them only. The result is the same
-for any cell size: every crossing within reach lies in a cell the walk visits before it stops
-(the padding covers the rounding of the walk and the crossing test's edge slack), and a tie
-between ``t`` and ``-t`` goes to the positive one.
+cells. Each triangle is listed in every cell within ``PAD`` cells of it: a small one (a
+marching-cubes triangle, at most two cells along each axis) in its bounding box's cells, a
+larger one in the cells it meets, found by clipping it slab by slab and row by row, so the
+long thin fans of a tank wall's cut faces occupy the cells along them only. A triangle is
+tested only if the line passes within its bounding sphere about the centroid. The result is
+the same for any cell size: every crossing within reach lies in a cell the walk visits before
+it stops (the padding covers the rounding of the walk and the crossing test's edge slack),
+and a tie between ``t`` and ``-t`` goes to the positive one.
 
 Measured on the main job's frames: ``benchmarks/bench_across_frames.py``.
 """
@@ -41,9 +43,9 @@ CELL_OVER_REACH = 1.0
 #: How far beyond a triangle (in cells) the cells listing it reach.
 PAD = 1e-5
 
-#: A line is tested against a triangle only within this factor of its circumscribing sphere
-#: about the centroid: 1e-3 beyond it, far more than the edge slack (2e-9 of an edge) and the
-#: rounding of the distance, so the skip never drops a crossing.
+#: A line is tested against a triangle only if it passes within this factor of the distance
+#: from the triangle's centroid to its farthest corner: 1e-3 beyond it, far more than the edge
+#: slack (2e-9 of an edge) and the rounding of the distance, so the skip never drops a crossing.
 BOUND_GROWTH = 1.001
 
 #: Triangles per chunk of the parallel binning.
