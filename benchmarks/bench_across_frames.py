@@ -14,12 +14,14 @@ ways, side by side in one run:
 * ``filter_grids_reused``: the same with every surface binned once
   (:class:`filters.surface.linecast.TriangleGrid`) and reused by the frames it serves, as
   the pipeline does; a frame's time includes the binning of one surface;
-* ``baseline``: the filter of a git revision (``--baseline``, default ``main``), loaded from
-  that revision's ``filters/surface/temporal.py``, on the same frames in the same rounds;
-  its results are compared with today's bit for bit (vertices and normals, every frame);
+* ``baseline``: the filter of a git revision (``--baseline``, default: where this branch left
+  ``main``), loaded from that revision's ``filters/surface/temporal.py``, on the same frames in
+  the same rounds; its results are compared with today's bit for bit (vertices and normals,
+  every frame);
 * ``pipeline``: :func:`pipeline.across_frames.smooth_series_across_frames`'s filtering pass
   on the run's files (reads, filter, writes; the first pass's single-frame surfaces are the
-  run's own), seconds a frame.
+  run's own), seconds a frame, beside the same pass of the baseline revision
+  (``pipeline/across_frames.py`` on its filter), whose files must be identical.
 
 Frames are timed round-robin (each repeat visits every frame with every method), medians
 reported; the issue's target is <= 0.3 s a frame. Run it under the lock for heavy jobs::
@@ -86,19 +88,39 @@ def load_frames(run: Path):
     return np.array(particles), surfaces, tank, 0.5 * prm["spacing"]
 
 
-def baseline_module(revision: str, folder: Path):
-    """``filters/surface/temporal.py`` as of ``revision``, importable beside today's package
-    (its relative imports made absolute: it runs on today's helpers, binning and attributes)."""
-    source = subprocess.run(["git", "show", f"{revision}:filters/surface/temporal.py"], cwd=ROOT,
-                            check=True, capture_output=True, text=True).stdout
-    source = re.sub(r"^from \.\.(\w)", r"from filters.\1", source, flags=re.M)
-    source = re.sub(r"^from \.(\w)", r"from filters.surface.\1", source, flags=re.M)
-    path = folder / "temporal_baseline.py"
-    path.write_text(source)
-    spec = importlib.util.spec_from_file_location("temporal_baseline", path)
+def _git(*args) -> str:
+    return subprocess.run(["git", *args], cwd=ROOT, check=True, capture_output=True,
+                          text=True).stdout
+
+
+def _module_of(revision: str, path: str, name: str, folder: Path, package: str, replace=()):
+    """``path`` as of ``revision``, importable as ``name`` beside today's packages (its
+    relative imports made absolute into ``package``, then ``replace`` applied)."""
+    source = _git("show", f"{revision}:{path}")
+    parent = package.rpartition(".")[0]
+    source = re.sub(r"^(\s*)from \.\.(\w)", rf"\1from {parent}.\2", source, flags=re.M)
+    source = re.sub(r"^(\s*)from \.(\w)", rf"\1from {package}.\2", source, flags=re.M)
+    for old, new in replace:
+        source = source.replace(old, new)
+    file = folder / f"{name}.py"
+    file.write_text(source)
+    spec = importlib.util.spec_from_file_location(name, file)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+def baseline_modules(revision: str, folder: Path):
+    """The across-frames filter (``filters/surface/temporal.py``) and pass
+    (``pipeline/across_frames.py``, on that filter) as of ``revision``, running on today's
+    helpers (binning, attributes, series)."""
+    temporal = _module_of(revision, "filters/surface/temporal.py", "temporal_baseline", folder,
+                          "filters.surface")
+    passes = _module_of(revision, "pipeline/across_frames.py", "across_frames_baseline", folder,
+                        "pipeline", replace=[("from filters.surface.temporal import",
+                                                "from temporal_baseline import")])
+    return temporal, passes
 
 
 def neighbours_of(k, particles, surfaces, grids=None):
@@ -117,11 +139,14 @@ def neighbours_of(k, particles, surfaces, grids=None):
     return entries, weights
 
 
-def pipeline_pass(run: Path, particles, radius, tank, work: Path) -> float:
-    """Seconds a frame of the pipeline's filtering pass on the run's files."""
+def pipeline_pass(run: Path, particles, radius, tank, work: Path, across_frames=None) -> float:
+    """Seconds a frame of the pipeline's filtering pass on the run's files (``across_frames``:
+    the module that makes it, today's by default); the series in ``work/smoothed.pvd``."""
     from filters.geometry import Box
-    from pipeline import across_frames
     from pipeline.series import read_collection
+
+    if across_frames is None:
+        from pipeline import across_frames
 
     def single(source, target, **kwargs):  # the first pass: the run's own surfaces
         folder = Path(target).parent / Path(target).stem
@@ -148,10 +173,13 @@ def main(argv=None) -> dict:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", type=Path, help="a run's folder (default: run the main job)")
-    parser.add_argument("--baseline", default="main", help="git revision of the old filter")
+    parser.add_argument("--baseline", default=None,
+                        help="git revision of the old filter (default: git merge-base HEAD main)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--output", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
+    if args.baseline is None:
+        args.baseline = _git("merge-base", "HEAD", "main").strip()
 
     load_start = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
@@ -162,7 +190,7 @@ def main(argv=None) -> dict:
             main_job_frames(run)
         particles, surfaces, tank, radius = load_frames(run)
         frames = len(surfaces)
-        old = baseline_module(args.baseline, tmp)
+        old, old_pass = baseline_modules(args.baseline, tmp)
 
         def today(k):
             entries, weights = neighbours_of(k, particles, surfaces)
@@ -206,8 +234,15 @@ def main(argv=None) -> dict:
                     identical[name] &= all(np.array_equal(a, b) for a, b in
                                            zip(results[name], results["baseline"], strict=True))
             grids.clear()
-        pipeline_s = [pipeline_pass(run, particles, radius, tank, tmp / "pipeline")
-                      for _ in range(args.repeats)]
+        pipeline_s, pipeline_old_s = [], []
+        for _ in range(args.repeats):
+            pipeline_s.append(pipeline_pass(run, particles, radius, tank, tmp / "new"))
+            pipeline_old_s.append(pipeline_pass(run, particles, radius, tank, tmp / "old",
+                                                old_pass))
+        files = sorted((tmp / "new" / "smoothed").glob("*.vtp"))
+        old_files = sorted((tmp / "old" / "smoothed").glob("*.vtp"))
+        files_identical = len(files) == len(old_files) == frames and all(
+            a.read_bytes() == b.read_bytes() for a, b in zip(files, old_files, strict=True))
     per_frame = {name: np.median(t, axis=0) for name, t in times.items()}
     median = {name: float(np.median(v)) for name, v in per_frame.items()}
     result = {
@@ -226,6 +261,10 @@ def main(argv=None) -> dict:
         "max_of_frame_medians_s": {name: float(v.max()) for name, v in per_frame.items()},
         "pipeline_pass_s_per_frame": {"median": float(np.median(pipeline_s)),
                                       "all": pipeline_s},
+        "pipeline_pass_baseline_s_per_frame": {"median": float(np.median(pipeline_old_s)),
+                                               "all": pipeline_old_s},
+        "pipeline_pass_speedup": float(np.median(pipeline_old_s) / np.median(pipeline_s)),
+        "pipeline_files_identical_to_baseline": bool(files_identical),
         "speedup_vs_baseline": {name: median["baseline"] / median[name]
                                 for name in ("filter", "filter_grids_reused")},
         "bitwise_identical_to_baseline": identical,
@@ -237,7 +276,8 @@ def main(argv=None) -> dict:
     args.output.write_text(json.dumps(result, indent=2) + "\n")
     for name, v in median.items():
         print(f"{name:22s} {v:7.3f} s a frame (median over {frames} frames)")
-    print(f"pipeline pass (reads, filter, writes): {np.median(pipeline_s):.3f} s a frame")
+    print(f"pipeline pass (reads, filter, writes): {np.median(pipeline_s):.3f} s a frame, "
+          f"baseline {np.median(pipeline_old_s):.3f}; files identical: {files_identical}")
     print(f"speed-up vs {args.baseline}: {result['speedup_vs_baseline']}")
     print(f"bitwise identical to {args.baseline}: {identical}")
     print(f"wrote {args.output}")
