@@ -123,8 +123,9 @@ def wide_vectors(typingctx):
     ``"prefer-vector-width"="512"`` on the loop's outlined function, so that loop runs 8
     doubles wide; on CPUs without AVX-512 the attribute asks for nothing they cannot do and
     the loop stays as it was. Vector width changes no result (no reassociation, no FMA
-    contraction without fastmath). Measured on ``perlin3`` (1M points, one thread, Sapphire
-    Rapids): 14.5 ms at 256 bits, 9.4 ms at 512 (``benchmarks/bench_noise.py``).
+    contraction without fastmath). Measured on ``perlin3``'s loop (1M points, one thread, the
+    project's Sapphire Rapids machine, CPU time): 14.5 ms at 256 bits, 9.4 ms at 512; the
+    whole against FastNoiseLite in ``benchmarks/bench_noise.py``.
 
     llvmlite's attribute set accepts only the attribute names it knows, so the string
     attribute is added to the underlying set; should a later llvmlite refuse it, the call is
