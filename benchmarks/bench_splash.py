@@ -453,17 +453,20 @@ def across_frames(meshes, frames, spacing, tank):
     2`` writes them (:func:`filters.surface.temporal.follow_particles_across_frames`, weights
     :func:`pipeline.across_frames.weights_across`; every particle is in every frame, in the
     order of its id)."""
+    from filters.surface.linecast import TriangleGrid
     from filters.surface.temporal import follow_particles_across_frames
     from pipeline.across_frames import weights_across
 
     w = weights_across(2)  # frames k-2 .. k+2: 1, 2, 3, 2, 1 over 9
     rows = np.arange(frames.shape[1])
+    # every surface binned once for the frames it serves, as the pipeline does
+    grids = [TriangleGrid(*m, 0.5 * spacing) for m in meshes]
     out = []
     for k, (points, tris) in enumerate(meshes):
         neighbours, weights = [], [w[2]]
         for j in (-2, -1, 1, 2):
             if 0 <= k + j < len(meshes):
-                neighbours.append((rows, frames[k + j], *meshes[k + j]))
+                neighbours.append((rows, frames[k + j], grids[k + j]))
                 weights.append(w[2 + j])
         out.append((follow_particles_across_frames(points, tris, frames[k], neighbours, weights,
                                                    0.5 * spacing, box=tank), tris))

@@ -15,6 +15,10 @@ the particles do not explain from 1.26x pysplashsurf's to 1.08x.
 
 from __future__ import annotations
 
+import os
+import shutil
+import threading
+from collections import OrderedDict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,6 +28,7 @@ from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkPointSet, vtkPolyData
 
 from filters.geometry import Box
+from filters.surface.linecast import TriangleGrid
 from filters.surface.temporal import follow_particles_across_frames, vertex_normals
 from filters.validation import check_int
 
@@ -62,6 +67,36 @@ def _mesh(path):
     return (data, *polydata_to_mesh(data))
 
 
+#: What recent tasks read (a serial pass reads every frame for ``2 K + 1`` tasks in a row):
+#: (kind, path, inode, mtime, size, extra) -> value (frames are written by an atomic rename:
+#: a rewritten file is a new inode), the oldest dropped beyond a window's worth.
+_RECENT: OrderedDict = OrderedDict()
+_RECENT_LOCK = threading.Lock()
+
+
+def _recent(kind, path, make, keep, *extra):
+    """``make(path, *extra)``, or what it returned for the same unchanged file lately (the
+    ``keep`` latest kept)."""
+    stat = os.stat(path)
+    key = (kind, str(path), stat.st_ino, stat.st_mtime_ns, stat.st_size, *extra)
+    with _RECENT_LOCK:
+        if key in _RECENT:
+            _RECENT.move_to_end(key)
+            return _RECENT[key]
+    value = make(path, *extra)
+    with _RECENT_LOCK:
+        _RECENT[key] = value
+        while len(_RECENT) > keep:
+            _RECENT.popitem(last=False)
+    return value
+
+
+def _surface(path, reach):
+    """A surface frame's (polydata, vertices, triangles, grid of its triangles for ``reach``)."""
+    data, points, tris = _mesh(path)
+    return data, points, tris, TriangleGrid(points, tris, reach) if len(tris) else None
+
+
 def across_frames_frame(in_file: str, out_file: str, time: float, options: dict) -> None:
     """Task: frame ``k``'s single-frame surface filtered with its neighbours'.
 
@@ -73,17 +108,18 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
     k = particles.index(in_file)
     K = options["frames"]
     radius = options["radius"]
-    data, points, tris = _mesh(surfaces[k])
+    keep = 2 * (2 * K + 2)  # the particles and surfaces of a window and the next frame
+    data, points, tris, _ = _recent("surface", surfaces[k], _surface, keep, radius)
     out = vtkPolyData()
     out.DeepCopy(data)
     if len(points):
-        ids, x = _particles_by_id(particles[k])
+        ids, x = _recent("particles", particles[k], _particles_by_id, keep)
         w = weights_across(K)
         weights, neighbours = [w[K]], []
         for j in range(-K, K + 1):
             if j == 0 or not 0 <= k + j < len(surfaces):
                 continue
-            other_ids, y = _particles_by_id(particles[k + j])
+            other_ids, y = _recent("particles", particles[k + j], _particles_by_id, keep)
             # the particles of frame k that frame k + j has too, matched by id
             sorter = np.argsort(other_ids)
             o = sorter[np.minimum(np.searchsorted(other_ids, ids, sorter=sorter),
@@ -91,8 +127,11 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
             both = other_ids[o] == ids
             if not both.any():
                 continue  # no particle in common: nothing tells where the surface went
-            _, vertices, triangles = _mesh(surfaces[k + j])
-            neighbours.append((np.flatnonzero(both), y[o[both]], vertices, triangles))
+            # the surface binned once for the 2 K frames it serves (same results either way)
+            _, vertices, triangles, grid = _recent("surface", surfaces[k + j], _surface, keep,
+                                                   radius)
+            surface = (vertices, triangles) if grid is None else (grid,)
+            neighbours.append((np.flatnonzero(both), y[o[both]], *surface))
             weights.append(w[K + j])
         smoothed = follow_particles_across_frames(points, tris, x, neighbours, weights, radius,
                                                   cell_size=options["cell_size"],

@@ -4,7 +4,14 @@
 variation (:mod:`filters.noise.variation`)."""
 
 from .fractal import MAX_OCTAVES, check_top_frequency, fbm3, turbulence3
-from .perlin import GRADIENTS, PERMUTATION, perlin3, perlin3_gradient, perlin3_hessian, permutation_table
+from .perlin import (
+    GRADIENTS,
+    PERMUTATION,
+    perlin3,
+    perlin3_gradient,
+    perlin3_hessian,
+    permutation_table,
+)
 from .variation import noise_variation
 
 __all__ = [

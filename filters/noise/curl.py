@@ -19,7 +19,15 @@ import numpy as np
 from numba import njit, prange
 
 from ..geometry import packed_distance, packed_hessian
-from .fractal import BLOCK, DRIFT, OCTAVE_SHIFT, fbm_value, fbm_value_grad, fbm_value_grad_hess, octave_accumulate
+from .fractal import (
+    BLOCK,
+    DRIFT,
+    OCTAVE_SHIFT,
+    fbm_value,
+    fbm_value_grad,
+    fbm_value_grad_hess,
+    octave_accumulate,
+)
 
 __all__ = ["curl_point", "curl_jacobian_point", "curl_velocities", "curl_jacobians",
            "curl_potentials"]

@@ -30,8 +30,15 @@ import numpy as np
 from numba import njit, prange
 
 from ..validation import check_finite, check_int, check_points, check_range
-from .perlin import (check_frequency, interleave3, kernel_table, perlin_value, perlin_value_grad,
-                     perlin_value_grad_hess)
+from .lattice import wide_vectors
+from .perlin import (
+    check_frequency,
+    interleave3,
+    kernel_table,
+    perlin_value,
+    perlin_value_grad,
+    perlin_value_grad_hess,
+)
 
 __all__ = [
     "MAX_OCTAVES",
@@ -161,10 +168,11 @@ def octave_accumulate(p, flat, start, count, f, amp, sx, sy, sz, ox, oy, oz, fir
     same operations, hence the same bits, as :func:`fbm_value_grad`."""
     a1 = amp * f
     for j in prange(count):
-        i = start + j
-        n, nx, ny, nz = perlin_value_grad(p, f * flat[3 * i] + sx + ox,
-                                          f * flat[3 * i + 1] + sy + oy,
-                                          f * flat[3 * i + 2] + sz + oz)
+        wide_vectors()  # 8 doubles a vector where the CPU has AVX-512
+        k = np.uint64(3 * (start + j))  # unsigned: interleaved loads, not gathers
+        n, nx, ny, nz = perlin_value_grad(p, f * flat[k] + sx + ox,
+                                          f * flat[k + np.uint64(1)] + sy + oy,
+                                          f * flat[k + np.uint64(2)] + sz + oz)
         if turbulence and n < 0.0:
             n = -n
             nx = -nx
@@ -187,9 +195,10 @@ def _octave_value_accumulate(p, flat, start, count, f, amp, sx, sy, sz, ox, oy, 
                              turbulence, v):
     """Value-only :func:`_octave_accumulate` (same bits as :func:`fbm_value`)."""
     for j in prange(count):
-        i = start + j
-        n = perlin_value(p, f * flat[3 * i] + sx + ox, f * flat[3 * i + 1] + sy + oy,
-                         f * flat[3 * i + 2] + sz + oz)
+        wide_vectors()
+        k = np.uint64(3 * (start + j))
+        n = perlin_value(p, f * flat[k] + sx + ox, f * flat[k + np.uint64(1)] + sy + oy,
+                         f * flat[k + np.uint64(2)] + sz + oz)
         if turbulence and n < 0.0:
             n = -n
         if first:

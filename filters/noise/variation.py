@@ -87,6 +87,6 @@ def noise_variation(points, low: float, high: float, *, ids=None, frequency: flo
         if id_array.shape[0] != pts.shape[0]:
             raise ValueError(f"ids must have {pts.shape[0]} entries, got {id_array.shape[0]}")
     out = np.empty(pts.shape[0])
-    _variation_many(kernel_tables(seed, 1)[0], pts, id_array, ids is not None, frequency, octaves, low,
-                    high, out)
+    _variation_many(kernel_tables(seed, 1)[0], pts, id_array, ids is not None, frequency, octaves,
+                    low, high, out)
     return out

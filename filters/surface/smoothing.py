@@ -80,10 +80,18 @@ def _csr_neighbors(t, n):
     offsets = np.zeros(n + 1, np.int64)
     out = 0
     for v in range(n):
-        lst = np.sort(raw[count[v]:count[v + 1]])
-        for i in range(lst.size):
-            if i == 0 or lst[i] != lst[i - 1]:
-                raw[out] = lst[i]
+        lo = count[v]
+        hi = count[v + 1]
+        for i in range(lo + 1, hi):  # insertion sort in place: the lists are short
+            x = raw[i]
+            j = i - 1
+            while j >= lo and raw[j] > x:
+                raw[j + 1] = raw[j]
+                j -= 1
+            raw[j + 1] = x
+        for i in range(lo, hi):
+            if i == lo or raw[i] != raw[i - 1]:
+                raw[out] = raw[i]
                 out += 1
         offsets[v + 1] = out
     return offsets, raw[:out].copy()

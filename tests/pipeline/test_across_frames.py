@@ -145,3 +145,23 @@ def test_particles_that_leave_or_arrive_are_matched_by_id(tmp_path):
     far = np.min(np.linalg.norm(p0[:, None] - changed[None], axis=2), axis=1) > 3 * SPACING
     assert far.sum() > 100
     np.testing.assert_allclose(out[0][0][far], single[0][0][far], atol=0.05 * SPACING)
+
+
+def test_a_rewritten_series_is_read_anew_not_from_the_last_pass(tmp_path):
+    # a pass keeps the frames it read (each serves 2 K + 1 tasks); a series rewritten in place
+    # and filtered again must give what a first pass over it gives, not the old frames' result
+    x = ball()
+    moves = [np.array([0.3, 0.0, 0.0]), np.array([0.0, -0.2, 0.25])]
+    series = [[x + k * m * SPACING for k in range(4)] for m in moves]
+    fresh = write_particles(tmp_path / "fresh" / "particles.pvd", series[1])
+    surface_series(fresh, tmp_path / "f" / "surface.pvd", progress=False, across_frames=1,
+                   **OPTIONS)
+    reused = tmp_path / "p" / "particles.pvd"
+    for frames in series:  # the same paths, other particles the second time
+        write_particles(reused, frames)
+        surface_series(reused, tmp_path / "s" / "surface.pvd", progress=False, across_frames=1,
+                       **OPTIONS)
+    for (p, t), (q, u) in zip(meshes(tmp_path / "f" / "surface.pvd"),
+                              meshes(tmp_path / "s" / "surface.pvd"), strict=True):
+        np.testing.assert_array_equal(t, u)
+        np.testing.assert_array_equal(p, q)
