@@ -203,6 +203,8 @@ def brick_images(grid: SparseGrid, group: int, chunk: int = 16,
     The buffer holds at most a quarter of ``max_bytes`` (:func:`brick_chunk`)."""
     bricks = grid.bricks(group)
     table = grid.block_table()
+    # bricks whose blocks hold one sign only are not filled (a third of them on a 100k block)
+    bricks = bricks[grid.may_cross(bricks, group, table)]
     span = group * grid.block_size
     check_budget(4 * (span + 1) ** 3, max(max_bytes // 4, 1),
                  f"one brick of {span + 1}^3 voxels (a quarter of max_bytes)")

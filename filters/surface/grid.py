@@ -400,6 +400,38 @@ class SparseGrid:
         keys = np.unique(pack_keys(bricks))
         return unpack_keys(keys)
 
+    def may_cross(self, bricks: np.ndarray, group: int = 4, table=None) -> np.ndarray:
+        """Which bricks may hold a sign change, decided from their blocks without filling them.
+
+        A brick's voxels lie in the ``(group + 1)^3`` blocks it touches; where those hold only
+        negative values (inside blocks, evaluated blocks wholly negative) or only values
+        ``>= 0`` (outside blocks, evaluated blocks wholly non-negative), the brick holds no
+        sign change. The test is conservative: a brick it keeps may still turn out to hold
+        none (:meth:`fill_bricks` with ``crossing`` tells), a brick it drops never holds one.
+
+        Parameters
+        ----------
+        bricks : (K, 3) int64
+            Brick coordinates (see :meth:`bricks`).
+        group : int
+            Blocks per brick edge.
+        table : tuple, optional
+            :meth:`block_table`, from a previous call.
+
+        Returns
+        -------
+        (K,) bool
+        """
+        if table is None:
+            table = self.block_table()
+        bricks = np.ascontiguousarray(bricks, dtype=np.int64)
+        out = np.zeros(bricks.shape[0], np.bool_)
+        if bricks.shape[0]:
+            signs = _block_signs(self.data)
+            _bricks_with_both_signs(out, bricks, group, self.block_size, table[0], table[1],
+                                    signs, self.inside_value < 0.0, self.outside_value < 0.0)
+        return out
+
     def fill_bricks(self, bricks: np.ndarray, group: int = 4, table=None, crossing: bool = False,
                     out: np.ndarray | None = None):
         """Dense values of the given bricks.
@@ -550,3 +582,43 @@ def _fill_bricks(out, cross, bricks, group, bsz, table, ranks, data, inside, out
             lo = min(lo, flat[t])
             hi = max(hi, flat[t])
         cross[b] = lo < 0 and hi >= 0
+
+
+@njit(parallel=True, cache=True)
+def _block_signs(data):
+    """Per evaluated block: bit 1 if it holds a value < 0, bit 2 if one >= 0 (NaN: neither)."""
+    signs = np.zeros(data.shape[0], np.int8)
+    for m in prange(data.shape[0]):
+        flat = data[m].ravel()
+        neg = False
+        pos = False
+        for t in range(flat.size):
+            neg = neg or flat[t] < 0
+            pos = pos or flat[t] >= 0
+        signs[m] = (1 if neg else 0) + (2 if pos else 0)
+    return signs
+
+
+@njit(parallel=True, cache=True)
+def _bricks_with_both_signs(out, bricks, group, bsz, table, ranks, signs, inside_negative,
+                            outside_negative):
+    """``out[b]``: the blocks brick ``b`` touches hold values of both signs."""
+    n = group * bsz + 1
+    nb = (n + bsz - 1) // bsz  # blocks a brick's voxels touch per axis (group + 1)
+    inside = 1 if inside_negative else 2
+    outside = 1 if outside_negative else 2
+    for b in prange(bricks.shape[0]):
+        s = 0
+        for c in range(nb):
+            for bj in range(nb):
+                for a in range(nb):
+                    r = lookup(table, ranks, pack_key(bricks[b, 0] * group + a,
+                                                      bricks[b, 1] * group + bj,
+                                                      bricks[b, 2] * group + c))
+                    if r >= 0:
+                        s |= signs[r]
+                    elif r == -2:
+                        s |= inside
+                    else:
+                        s |= outside
+        out[b] = s == 3
