@@ -259,3 +259,29 @@ def test_budget_message_gives_sizes_in_sensible_units():
         check_budget(2**32 + 1, 2**32, "a grid")
     with pytest.raises(GridTooLargeError, match=r"needs [1-9][0-9.]* (KiB|MiB|GiB)"):
         splat_sparse(_cloud(), 0.01, 0.0005, max_bytes=10_000)
+
+
+@pytest.mark.parametrize("kernel", ["sph", "zhu_bridson"])
+def test_may_cross_keeps_every_brick_with_a_sign_change(kernel):
+    """The bricks SparseGrid.may_cross drops hold no sign change once filled; those it keeps
+    include every brick that does (drops, a slab and a CSG cut: inside, outside and evaluated
+    blocks side by side)."""
+    rng = np.random.default_rng(3)
+    balls = [c + rng.normal(0, 0.01, (150, 3)) for c in ([0, 0, 0], [0.08, 0.02, 0.0])]
+    slab = np.stack(np.meshgrid(np.arange(40), np.arange(40), np.arange(12), indexing="ij"),
+                    -1).reshape(-1, 3) * 0.008 + [0.0, 0.0, -0.2]
+    x = np.concatenate(balls + [slab])
+    grid = splat_sparse(x, 0.004, 0.002, kernel=kernel)
+    grids = [grid]
+    if kernel == "sph":
+        grids.append(combine_sparse(grid, Plane((0.0, 0.0, -0.15), (0.0, 0.0, 1.0)),
+                                    "intersection"))
+    for g in grids:
+        dropped = 0
+        for group in (1, 2, 4):
+            bricks = g.bricks(group)
+            keep = g.may_cross(bricks, group)
+            _, crossing = g.fill_bricks(bricks, group, crossing=True)
+            assert crossing.any() and not crossing[~keep].any()
+            dropped += int((~keep).sum())
+        assert dropped  # it does drop bricks (else it tests nothing)
