@@ -326,3 +326,40 @@ def test_particle_stages_read_the_particles_through_any_filter():
 def test_every_stage_validates_every_argument(build, error, match):
     with pytest.raises(error, match=match):
         build()
+
+
+def test_bricks_contoured_on_two_threads_give_the_serial_mesh_bit_for_bit():
+    """contour_bricks returns each brick's flying-edges output in the jobs' order whatever the
+    number of worker threads; contour_sparse's mesh is the same with 1 and 2 threads, and has
+    the triangles and pieces of the dense field's (watertight)."""
+    import numba
+
+    from pipeline.contour import brick_images, contour_bricks, image_of
+
+    rng = np.random.default_rng(5)
+    x = np.concatenate([c + rng.normal(0, 0.006, (200, 3))
+                        for c in ([0, 0, 0], [0.05, 0.0, 0.01], [0.0, 0.06, -0.02])])
+    grid = splat_sparse(x, 0.003, 0.0015)
+    jobs = [(values.copy(), origin) for origin, values in brick_images(grid, 2)]
+    assert len(jobs) > 8
+    images = [image_of(values, origin, deep=True)[0] for values, origin in jobs]
+    serial = list(contour_bricks(jobs, workers=1))
+    assert sum(p is not None for p, _ in serial) == len(jobs)
+    for threaded in (list(contour_bricks(jobs, workers=2)),
+                     list(contour_bricks(images, workers=3))):
+        assert len(threaded) == len(serial)
+        for (p1, c1), (p2, c2) in zip(serial, threaded, strict=True):
+            assert np.array_equal(p1, p2) and np.array_equal(c1, c2)
+    threads = numba.get_num_threads()
+    try:
+        meshes = []
+        for n in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(n)
+            meshes.append(contour_sparse(grid, group=2))
+    finally:
+        numba.set_num_threads(threads)
+    assert all(np.array_equal(a, b) for a, b in zip(*meshes, strict=True))
+    stats = mesh_stats(*meshes[0])
+    dense = mesh_stats(*contour_dense(splat_dense(x, 0.003, 0.0015)))
+    assert stats.closed and stats.manifold and stats.components >= 3
+    assert (stats.triangles, stats.components) == (dense.triangles, dense.components)
