@@ -15,7 +15,9 @@ with lattice spacing 0.02 m, jitter uniform in +-10 % of the spacing, seed 0.
 Tools, each in its own subprocess (peak resident memory per tool):
 
 * ``pysplashsurf`` (Löschner et al. 2023) ``reconstruct_surface``: particle radius 0.01 m,
-  smoothing length 2.0 and cube size 0.5 (multiples of the radius), iso 0.6, float32 input.
+  smoothing length 2.0 and cube size 0.5 (multiples of the radius), iso 0.6, float32 input;
+  the cell size of the grid it builds is read back from its result (``grid_cell_size_m``,
+  which must be 0.005 m) and the triangle counts are compared.
 * ``blobflow``: ``filters.surface.splat.splat_sparse`` (SPH kernel, support 4 r = 2 x smoothing
   length, iso 0.6, cell 0.005 m) + ``pipeline.surface.contour_sparse`` (flying edges per brick,
   stitched); smoothing (``Smooth`` defaults) is timed separately and not part of the ratio,
@@ -45,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import resource
@@ -139,6 +142,10 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
             rec = pysplashsurf.reconstruct_surface(
                 xf, particle_radius=RADIUS, smoothing_length=2.0, cube_size=0.5,
                 iso_surface_threshold=ISO)
+            # its settings read back: the marching-cubes grid it built (cube_size is a multiple
+            # of the particle radius, so the cell must come back as CELL)
+            extra["grid_cell_size_m"] = float(rec.grid.cell_size)
+            extra["grid_cells_per_dim"] = [int(v) for v in rec.grid.ncells_per_dim]
             return np.asarray(rec.mesh.vertices), np.asarray(rec.mesh.triangles)
 
         warm = lambda: None  # noqa: E731
@@ -239,6 +246,12 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
         "peak_rss_MiB": _peak_mib(), "baseline_rss_MiB": baseline,
         "peak_increase_MiB": _peak_mib() - baseline,
     }
+    if tool == "pysplashsurf":
+        out["grid_cell_size_m"] = extra["grid_cell_size_m"]
+        out["grid_cells_per_dim"] = extra["grid_cells_per_dim"]
+        if not math.isclose(extra["grid_cell_size_m"], CELL, rel_tol=1e-6):
+            raise RuntimeError(f"pysplashsurf built a grid of cell {extra['grid_cell_size_m']} m, "
+                               f"not {CELL} m: its settings were not taken as meant")
     if tool == "blobflow":
         out["splat_s"] = min(extra["splat_s"])
         out["contour_s"] = min(extra["contour_s"])
