@@ -275,9 +275,49 @@ def unpack_keys(keys: np.ndarray) -> np.ndarray:
 
 
 def dilate_keys(unique: np.ndarray, reach: int) -> np.ndarray:
-    """Distinct keys of the blocks within ``reach`` blocks of those in ``unique`` (sorted)."""
-    out = _dilate(np.ascontiguousarray(unique, dtype=np.int64), int(reach))
+    """Distinct keys of the blocks within ``reach`` blocks of those in ``unique`` (sorted).
+
+    Marked on a dense bitmap of the blocks' box when it holds at most 64 cells per block
+    marked (a liquid's blocks fill their box), else collected in a hash set (far-apart
+    clusters); the same keys either way."""
+    unique = np.ascontiguousarray(unique, dtype=np.int64)
+    reach = int(reach)
+    if unique.size:
+        coords = unpack_keys(unique)
+        lo = coords.min(axis=0) - reach
+        dims = coords.max(axis=0) + reach + 1 - lo
+        if float(np.prod(dims.astype(np.float64))) <= 64.0 * unique.size * (2 * reach + 1) ** 3:
+            return _dilate_dense(coords - lo, lo, dims, reach)
+    out = _dilate(unique, reach)
     out.sort()
+    return out
+
+
+@njit(cache=True)
+def _dilate_dense(rel, lo, dims, reach):
+    """:func:`_dilate` on a bitmap of the box ``lo + [0, dims)``: keys in sorted order (x, then
+    y, then z: the order of :func:`pack_key`)."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    mark = np.zeros((nx, ny, nz), np.bool_)
+    for u in range(rel.shape[0]):
+        x, y, z = rel[u, 0], rel[u, 1], rel[u, 2]
+        for a in range(x - reach, x + reach + 1):
+            for b in range(y - reach, y + reach + 1):
+                for c in range(z - reach, z + reach + 1):
+                    mark[a, b, c] = True
+    count = 0
+    for a in range(nx):
+        for b in range(ny):
+            for c in range(nz):
+                count += mark[a, b, c]
+    out = np.empty(count, np.int64)
+    k = 0
+    for a in range(nx):
+        for b in range(ny):
+            for c in range(nz):
+                if mark[a, b, c]:
+                    out[k] = pack_key(lo[0] + a, lo[1] + b, lo[2] + c)
+                    k += 1
     return out
 
 

@@ -285,3 +285,23 @@ def test_may_cross_keeps_every_brick_with_a_sign_change(kernel):
             assert crossing.any() and not crossing[~keep].any()
             dropped += int((~keep).sum())
         assert dropped  # it does drop bricks (else it tests nothing)
+
+
+def test_dilated_blocks_are_the_same_from_the_bitmap_and_the_hash_set():
+    """dilate_keys marks a dense bitmap where the blocks fill their box and a hash set where
+    they are far apart: the same sorted keys as the hash set, every block within reach."""
+    from filters.surface.grid import _dilate, dilate_keys, pack_keys, unpack_keys
+
+    rng = np.random.default_rng(7)
+    dense = pack_keys(np.unique(rng.integers(-6, 6, (300, 3)), axis=0))
+    far = pack_keys(np.array([[0, 0, 0], [90000, 5, -90000], [3, 4, 5]]))
+    for keys in (dense, far):
+        for reach in (0, 1, 2):
+            got = dilate_keys(keys, reach)
+            assert np.array_equal(got, np.sort(_dilate(keys, reach)))
+            coords = unpack_keys(keys)
+            # brute force: every block within Chebyshev distance `reach` of a block, once
+            steps = np.stack(np.meshgrid(*[np.arange(-reach, reach + 1)] * 3, indexing="ij"),
+                             -1).reshape(-1, 3)
+            want = np.unique(pack_keys((coords[:, None, :] + steps).reshape(-1, 3)))
+            assert np.array_equal(got, want)
