@@ -120,11 +120,16 @@ def across_frames_frame(in_file: str, out_file: str, time: float, options: dict)
             if j == 0 or not 0 <= k + j < len(surfaces):
                 continue
             other_ids, y = _recent("particles", particles[k + j], _particles_by_id, keep)
-            # the particles of frame k that frame k + j has too, matched by id
-            sorter = np.argsort(other_ids)
-            o = sorter[np.minimum(np.searchsorted(other_ids, ids, sorter=sorter),
-                                  len(other_ids) - 1)]
-            both = other_ids[o] == ids
+            # the particles of frame k that frame k + j has too, matched by id (frames list
+            # their particles in one order, by id: mostly the same ids in the same rows)
+            if np.array_equal(other_ids, ids):
+                o = np.arange(len(ids))
+                both = np.ones(len(ids), bool)
+            else:
+                sorter = np.argsort(other_ids)
+                o = sorter[np.minimum(np.searchsorted(other_ids, ids, sorter=sorter),
+                                      len(other_ids) - 1)]
+                both = other_ids[o] == ids
             if not both.any():
                 continue  # no particle in common: nothing tells where the surface went
             # the surface binned once for the 2 K frames it serves (same results either way)
