@@ -83,6 +83,9 @@ def run_once(out: Path, cache: Path) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=1, help="cold + warm pairs (default 1)")
+    parser.add_argument("--keep", type=Path, metavar="DIR",
+                        help="copy the last run's folder (series, renders) to DIR (replaced), "
+                             "e.g. for bench_across_frames.py --run DIR")
     args = parser.parse_args(argv)
     if args.repeat < 1:
         parser.error(f"--repeat must be >= 1 (got {args.repeat})")
@@ -97,6 +100,10 @@ def main(argv=None) -> int:
                 runs.append(result)
                 print(f"{label}: {result['wall_s']} s wall, {result['cpu_s']} s CPU, "
                       f"phases {result['phase_start_s']}", flush=True)
+        if args.keep is not None:
+            if args.keep.exists():
+                shutil.rmtree(args.keep)
+            shutil.copytree(Path(tmp) / "dam_break", args.keep)
     cold = [r["wall_s"] for r in runs if r["cache"] == "cold"]
     warm = [r["wall_s"] for r in runs if r["cache"] == "warm"]
     record = {
