@@ -13,12 +13,9 @@ split, the same in every cube, so its bricks stitch the same way. The
 
 from __future__ import annotations
 
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import get_num_threads
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkPoints, vtkTypeInt32Array, vtkTypeInt64Array
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkImageData, vtkPolyData
@@ -30,7 +27,7 @@ from filters.surface.tetra import contour_array, contour_grid
 from filters.validation import check_choice, check_int
 
 if TYPE_CHECKING:
-    from typing import Iterable, Iterator, Mapping
+    from typing import Iterator, Mapping
 
 __all__ = [
     "FIELD_NAME",
@@ -43,7 +40,6 @@ __all__ = [
     "check_grid_sizes",
     "contour_dense",
     "contour_sparse",
-    "contour_bricks",
     "mesh_to_polydata",
     "polydata_to_mesh",
 ]
@@ -92,16 +88,13 @@ class Pieces:
         self.count = 0
 
     def add(self, fe: vtkFlyingEdges3D, lo: np.ndarray, hi: np.ndarray) -> None:
-        self.add_arrays(*_fe_output(fe), lo, hi)
-
-    def add_arrays(self, points: np.ndarray | None, conn: np.ndarray | None, lo: np.ndarray,
-                   hi: np.ndarray) -> None:
-        """A piece's ``points (n, 3) float32`` and triangle ``conn (3 t,)`` (indices into
-        ``points``; None for an empty piece), contoured over voxels ``[lo, hi]``."""
-        if points is None:
+        out = fe.GetOutput()
+        n = out.GetNumberOfPoints()
+        if n == 0 or out.GetNumberOfPolys() == 0:
             return
-        n = points.shape[0]
-        self.points.append(points)
+        pts = numpy_support.vtk_to_numpy(out.GetPoints().GetData())
+        self.points.append(np.array(pts, dtype=np.float32))  # a copy: fe's output is reused
+        conn = numpy_support.vtk_to_numpy(out.GetPolys().GetConnectivityArray())
         dtype = np.int32 if self.count + n < 2**31 else np.int64
         tris = np.empty((conn.size // 3, 3), dtype)
         np.add(conn.reshape(-1, 3), self.count, out=tris, casting="unsafe")
@@ -127,70 +120,6 @@ class Pieces:
         pts, tris = stitch(pts, tris, flags, reverse=True)
         pts *= np.float32(cell_size)
         return pts, tris
-
-
-def _fe_output(fe: vtkFlyingEdges3D) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Copies of a flying-edges output's points (float32) and connectivity (None if empty)."""
-    out = fe.GetOutput()
-    if out.GetNumberOfPoints() == 0 or out.GetNumberOfPolys() == 0:
-        return None, None
-    pts = np.array(numpy_support.vtk_to_numpy(out.GetPoints().GetData()), dtype=np.float32)
-    conn = np.array(numpy_support.vtk_to_numpy(out.GetPolys().GetConnectivityArray()))
-    return pts, conn
-
-
-def contour_bricks(jobs: Iterable, value: float = 0.0,
-                   workers: int | None = None) -> Iterator[tuple[np.ndarray | None,
-                                                                 np.ndarray | None]]:
-    """Flying edges on independent images, ``workers`` at a time, results in the jobs' order.
-
-    Each job is ``(values (nz, ny, nx) float32, index_origin (3,))`` (values C-contiguous,
-    read in place) or a vtkImageData already in index units; each worker thread has its own
-    vtkFlyingEdges3D (VTK runs it without holding Python's global lock, so two bricks are
-    contoured at once on two cores; each brick's output is the serial one's, bit for bit).
-
-    Parameters
-    ----------
-    jobs : iterable
-        The images, in order.
-    value : float
-        Contour value.
-    workers : int, optional
-        Threads, default Numba's thread count (``NUMBA_NUM_THREADS``); 1 contours in this
-        thread.
-
-    Yields
-    ------
-    (points (n, 3) float32, conn (3 t,) int) or (None, None)
-        Per job, in order: the vertices (index units) and triangle connectivity.
-    """
-    workers = get_num_threads() if workers is None else max(1, int(workers))
-    local = threading.local()
-
-    def one(job):
-        fe = getattr(local, "fe", None)
-        if fe is None:
-            fe = local.fe = flying_edges()
-            fe.SetValue(0, value)
-        if isinstance(job, vtkImageData):
-            image, keep = job, None
-        else:
-            values, origin = job
-            image, keep = image_of(values, origin)
-        fe.SetInputData(image)
-        fe.Modified()
-        fe.Update()
-        result = _fe_output(fe)
-        fe.SetInputData(None)
-        del keep
-        return result
-
-    if workers == 1:
-        for job in jobs:
-            yield one(job)
-        return
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        yield from pool.map(one, jobs)
 
 
 def contour_dense(field: DenseField,
@@ -266,14 +195,12 @@ def check_grid_sizes(radius: float, cell_size: float, kernel: str, support_r: fl
                          f"{64 * block_size} (64 blocks of {block_size}); increase cell_size")
 
 
-def brick_chunks(grid: SparseGrid, group: int, chunk: int = 16,
-                 max_bytes: int = DEFAULT_MAX_BYTES) -> Iterator[list[tuple[np.ndarray,
-                                                                              np.ndarray]]]:
-    """Yield, chunk by chunk, lists of (index_origin, values) of the bricks that hold a sign
-    change, in order.
+def brick_images(grid: SparseGrid, group: int, chunk: int = 16,
+                 max_bytes: int = DEFAULT_MAX_BYTES) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Yield (index_origin, values) of each brick that holds a sign change.
 
-    The values live in a buffer reused for every chunk: use them before the next. The buffer
-    holds at most a quarter of ``max_bytes`` (:func:`brick_chunk`)."""
+    The values live in a buffer reused for every chunk of bricks: use them before the next.
+    The buffer holds at most a quarter of ``max_bytes`` (:func:`brick_chunk`)."""
     bricks = grid.bricks(group)
     table = grid.block_table()
     # bricks whose blocks hold one sign only are not filled (a third of them on a 100k block)
@@ -286,17 +213,8 @@ def brick_chunks(grid: SparseGrid, group: int, chunk: int = 16,
     for s in range(0, bricks.shape[0], chunk):
         part = bricks[s:s + chunk]
         vals, crossing = grid.fill_bricks(part, group, table, crossing=True, out=buffer)
-        yield [(part[b] * span, vals[b]) for b in np.flatnonzero(crossing)]
-
-
-def brick_images(grid: SparseGrid, group: int, chunk: int = 16,
-                 max_bytes: int = DEFAULT_MAX_BYTES) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """Yield (index_origin, values) of each brick that holds a sign change.
-
-    The values live in a buffer reused for every chunk of bricks: use them before the next.
-    The buffer holds at most a quarter of ``max_bytes`` (:func:`brick_chunk`)."""
-    for part in brick_chunks(grid, group, chunk, max_bytes):
-        yield from part
+        for b in np.flatnonzero(crossing):
+            yield part[b] * span, vals[b]
 
 
 def contour_sparse(grid: SparseGrid, group: int = 4,
@@ -329,12 +247,19 @@ def contour_sparse(grid: SparseGrid, group: int = 4,
         return contour_grid(grid, group)
     pieces = Pieces()
     if not grid.empty:
+        fe = flying_edges()
         span = group * grid.block_size
-        # a chunk of filled bricks contoured on every core, added in order (the same mesh)
-        for part in brick_chunks(grid, group):
-            jobs = [(values, origin) for origin, values in part]
-            for (origin, _), arrays in zip(part, contour_bricks(jobs), strict=True):
-                pieces.add_arrays(*arrays, origin, origin + span)
+        # one image and one buffer for all bricks: only the values and the origin change
+        buffer = np.empty((span + 1,) * 3, np.float32)
+        image, array = image_of(buffer, (0, 0, 0))
+        fe.SetInputData(image)
+        for origin, values in brick_images(grid, group):
+            np.copyto(buffer, values)
+            image.SetOrigin(*[float(v) for v in origin])
+            array.Modified()
+            fe.Modified()
+            fe.Update()
+            pieces.add(fe, origin, origin + span)
     return pieces.mesh(grid.cell_size)
 
 

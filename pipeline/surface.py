@@ -68,7 +68,7 @@ from filters.surface.walls import WALL_MARGIN_R, grow_walls
 from filters.validation import check_bool, check_choice, check_int, check_range
 
 from .algorithm import Algorithm, run_chain
-from .contour import (CONTOUR_METHODS, Pieces, brick_images, check_grid_sizes, contour_bricks,
+from .contour import (CONTOUR_METHODS, Pieces, brick_images, check_grid_sizes, flying_edges,
                       image_of, mesh_to_polydata)
 from .feedback import BlobflowWarning, compile_notice, stage_progress
 from .liquid import (LIQUID_SURFACE, PARTICLE_SURFACE, ClipBox, SurfaceKind,
@@ -308,8 +308,12 @@ class MarchingCubes(Algorithm):
             raise TypeError(f"MarchingCubes needs vtkImageData or vtkPartitionedDataSet input, "
                             f"got {inp.GetClassName()}")
         tetra = self.method == "tetrahedra"
-        pieces = TetraPieces(self.value) if tetra else Pieces()
-        works, boxes = [], []  # flying edges: the images in index units, contoured below
+        if tetra:
+            pieces = TetraPieces(self.value)
+        else:
+            fe = flying_edges()
+            fe.SetValue(0, self.value)
+            pieces = Pieces()
         cell = None
         for im in images:
             if im.GetNumberOfPoints() == 0 or min(im.GetDimensions()) < 2:
@@ -334,11 +338,10 @@ class MarchingCubes(Algorithm):
             work.ShallowCopy(im)
             work.SetOrigin(*index_origin)
             work.SetSpacing(1.0, 1.0, 1.0)
-            works.append(work)
-            boxes.append((index_origin, index_origin + np.array(im.GetDimensions()) - 1))
-        # on every core, added in order: the mesh of a serial loop, bit for bit
-        for (lo, hi), arrays in zip(boxes, contour_bricks(works, self.value), strict=True):
-            pieces.add_arrays(*arrays, lo, hi)
+            fe.SetInputData(work)
+            fe.Modified()
+            fe.Update()
+            pieces.add(fe, index_origin, index_origin + np.array(im.GetDimensions()) - 1)
         return pieces.mesh(1.0 if cell is None else cell)
 
 
