@@ -28,10 +28,10 @@ layer, where the lattice's cells end; for the SPH pool it follows the settled pa
 than the initial volume (the weakly compressible solver leaves the column 0.2 spacings lower
 than ``N s^3 / A``, and its layers closer than s near the top).
 
-Methods: ``isotropic`` (``filters.surface.splat.splat_sparse`` + ``contour_sparse``), ``isotropic+smooth``
-(the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100 iterations, pass band
-0.001), ``anisotropic`` (``filters.surface.splat.splat_sparse_anisotropic`` defaults +
-``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
+Methods: ``isotropic`` (``filters.surface.splat.splat_sparse`` + ``contour_sparse``),
+``isotropic+smooth`` (the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100
+iterations, pass band 0.001), ``anisotropic`` (``filters.surface.splat.splat_sparse_anisotropic``
+defaults + ``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
 ``isotropic+feature`` / ``anisotropic+feature`` (+ 25 sweeps of feature-weighted Laplacian
 smoothing, :func:`filters.surface.smoothing.smooth_surface`, the ``MarchingCubes`` option),
 ``splashsurf_raw`` (``pysplashsurf.reconstruct_surface``, smoothing length 2 r, cube 0.5 r, iso

@@ -86,7 +86,10 @@ def _contrast(renderer, image) -> float:
     key = np.array(renderer._key.position)
     away = math.atan2(-key[1], -key[0])
     angles = away + np.radians(np.arange(-30, 31, 10))
-    ring = lambda d: renderer.pixels_of([[d * math.cos(a), d * math.sin(a), 0.0] for a in angles])
+
+    def ring(d):
+        return renderer.pixels_of([[d * math.cos(a), d * math.sin(a), 0.0] for a in angles])
+
     lum = image.astype(float).mean(axis=-1)
 
     def floor_mean(pixels):

@@ -1,4 +1,5 @@
-"""Liquid surfaces in motion: drops keep their volume, pools keep their water, frames do not flicker.
+"""Liquid surfaces in motion: drops keep their volume, pools keep their water, frames do not
+flicker.
 
 blobflow's scene surface (``scenes/liquid_surface.py``: :func:`pipeline.surface_options.
 liquid_surface_options`, i.e. anisotropic kernels, ghosts across the tank walls, feature and
@@ -20,11 +21,12 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   surface's vertices (2 s from the walls) to the previous frame's surface, spacings per frame;
   beside it, how far the top layer's particles move (RMS of their vertical displacement).
 * ``temporal_motion``: the frames of the ``drop`` scene at its defaults (1.5 s, 30 fps, 12 mm
-  spacing, 2,500 particles) and at 6 mm (20,000 particles, a crown and drops): each frame's vertices moved by the particles' own displacement to the next frame
-  (interpolated at the vertex with Shepard weights of the SPH kernel, support 2 s), then their
-  distance to the next frame's surface: the surface motion the liquid's motion does not
-  explain. RMS over the vertices more than one spacing from the tank walls (pysplashsurf does
-  not clip at the walls), the same with distances capped at one spacing (a drop forming or
+  spacing, 2,500 particles) and at 6 mm (20,000 particles, a crown and drops): each frame's vertices
+  moved by the particles' own displacement to the next frame (interpolated at the vertex with
+  Shepard weights of the SPH kernel, support 2 s), then their distance to the next frame's surface:
+  the surface motion the liquid's motion does not explain. RMS over the vertices more than one
+  spacing from the tank walls (pysplashsurf does not clip at the walls), the same with distances
+  capped at one spacing (a drop forming or
   merging moves the surface by more), and the fraction above half a spacing. Two more views
   of the same signed distances: ``beyond_uniform_offset``, the RMS once each piece's mean
   (a uniform offset of a closed piece: the volume it gains or loses) is removed, and
@@ -41,10 +43,10 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   surface's volume error against ``N s^3`` per frame is written beside its motion.
 * ``thin_features``: jittered single and double particle layers (16 x 16 particles, in-plane
   spacing 1.0-1.8 s, layers s apart): components, cavities (closed bubbles inside) and holes
-  (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every
-  ``drop`` frame the components, cavities and holes of both surfaces against the particle clusters (particles linked by chains of
-  neighbours within the kernel support, 2 s: the pieces the liquid forms where particles are
-  within the kernel support of each other).
+  (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every ``drop``
+  frame the components, cavities and holes of both surfaces against the particle clusters (particles
+  linked by chains of neighbours within the kernel support, 2 s: the pieces the liquid forms where
+  particles are within the kernel support of each other).
 
 Run alone (the machine has 2 cores)::
 
@@ -288,11 +290,11 @@ def run_drops(report, spacing=0.02):
             v0 = len(x) * spacing ** 3
             row = {"particles": int(len(x))}
             for name, fn in (
-                    ("scene", lambda: scene_surface(x, spacing)),
+                    ("scene", lambda x=x: scene_surface(x, spacing)),
                     ("scene_without_correction",
-                     lambda: scene_surface(x, spacing, volume_correction=False)),
-                    ("scene_isotropic", lambda: scene_surface(x, spacing, anisotropic=False)),
-                    ("splashsurf", lambda: splashsurf_surface(x, spacing))):
+                     lambda x=x: scene_surface(x, spacing, volume_correction=False)),
+                    ("scene_isotropic", lambda x=x: scene_surface(x, spacing, anisotropic=False)),
+                    ("splashsurf", lambda x=x: splashsurf_surface(x, spacing))):
                 row[name] = float(mesh_stats(*fn()).volume / v0 - 1.0)
             out[f"radius_{radius}_jitter_{jitter}"] = row
             report(f"  ball r={radius} jitter {jitter}: " + "  ".join(
@@ -330,9 +332,10 @@ def run_pools(report, spacings):
                                                              - 1.0),
                              "bumpiness": _top_bumpiness(pts, tank, spacing)}
         pools[key] = row
-        report(f"  pool {key} ({row['particles']} particles, settled in {wall:.0f} s): " + "  ".join(
-            f"{k} {v['volume_error']:+.4f} (bumps {v['bumpiness']:.4f})"
-            for k, v in row.items() if isinstance(v, dict) and "volume_error" in v))
+        report(f"  pool {key} ({row['particles']} particles, settled in {wall:.0f} s): "
+               + "  ".join(f"{k} {v['volume_error']:+.4f} (bumps {v['bumpiness']:.4f})"
+                           for k, v in row.items()
+                           if isinstance(v, dict) and "volume_error" in v))
         rest[key] = _temporal_rest(frames, spacing, tank, report)
     return pools, rest
 
@@ -349,7 +352,8 @@ def _temporal_rest(frames, spacing, tank, report):
     dz = np.diff(frames[:, top, 2], axis=0)
     out = {"particles_top_layer_rms_dz_per_frame": [float(v) for v in
                                                     np.sqrt(np.mean(dz ** 2, axis=1)) / spacing]}
-    report(f"    at rest, the top layer's particles move {np.mean(out['particles_top_layer_rms_dz_per_frame']):.5f} "
+    report(f"    at rest, the top layer's particles move "
+           f"{np.mean(out['particles_top_layer_rms_dz_per_frame']):.5f} "
            f"spacings per frame (RMS, vertical)")
     for name, fn in (("scene", lambda x: scene_surface(x, spacing, tank)),
                      ("splashsurf", lambda x: splashsurf_surface(x, spacing))):
@@ -494,8 +498,8 @@ def run_sheets(report, spacing=0.02):
         for factor in (1.0, 1.2, 1.4, 1.6, 1.8):
             x = sheet(factor, layers, spacing)
             row = {}
-            for name, fn in (("scene", lambda: scene_surface(x, spacing)),
-                             ("splashsurf", lambda: splashsurf_surface(x, spacing))):
+            for name, fn in (("scene", lambda x=x: scene_surface(x, spacing)),
+                             ("splashsurf", lambda x=x: splashsurf_surface(x, spacing))):
                 c, cav, h = holes(*fn())
                 row[name] = {"components": int(c), "cavities": int(cav), "holes": int(h)}
             out[f"layers_{layers}_spacing_{factor}"] = row

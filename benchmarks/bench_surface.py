@@ -24,8 +24,8 @@ Tools, each in its own subprocess (peak resident memory per tool):
   volume s^3) onto a vtkImageData with the same cell size + vtkFlyingEdges3D.
 
 The machine is shared, so runs alternate between the tools, one fresh process per run
-(``--repeats`` rounds for the 100k cases, 2 for the others). Reported per tool and case: the best wall
-time (all listed), the largest peak RSS of its processes (VmHWM) and the largest increase over
+(``--repeats`` rounds for the 100k cases, 2 for the others). Reported per tool and case: the best
+wall time (all listed), the largest peak RSS of its processes (VmHWM) and the largest increase over
 the RSS after imports, Numba warm-up and data generation, triangles, closed / manifold, and the
 volume error against the particles' volume ``N s^3``. The absolute peak includes the
 interpreter and libraries: about 230 MiB for blobflow (Numba's LLVM, VTK), 50 MiB for
