@@ -99,7 +99,7 @@ def test_emitter_rate_lifetime_ids_and_box():
                          lifetime_jitter=0.0, jitter=1.0)
     sim = NoiseAdvection(Uniform((0.0, 0.0, 0.0)), emitter, integrator="euler")
     dt = 1.0 / 60.0
-    for k in range(15):
+    for _ in range(15):
         sim.step(dt)
     s = sim.state
     assert s.n_points == 150  # 600 /s for 0.25 s, nothing has died yet

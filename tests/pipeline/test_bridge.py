@@ -48,7 +48,7 @@ def test_worker_answers_requests_with_reconstruct(tmp_path):
     lines = "".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in requests)
     out = io.StringIO()
     serve(io.StringIO(lines), out)
-    answers = [json.loads(l) for l in out.getvalue().splitlines()]
+    answers = [json.loads(line) for line in out.getvalue().splitlines()]
     assert answers[0] == {"ok": True}
     assert answers[1]["code"] == 2 and "kernel" in answers[1]["error"]
     assert answers[2]["code"] == 2 and "missing" in answers[2]["error"]

@@ -173,13 +173,13 @@ def test_list_verbose_gives_every_description_whole(capsys):
 
     code, out, _ = _run_cli(capsys, "list", "--verbose")
     assert code == 0
-    lines = [l for l in out.splitlines() if l.startswith("    ") and " = " in l]
+    lines = [line for line in out.splitlines() if line.startswith("    ") and " = " in line]
     expected = sum(len(load_scene(n).parameters) for n in available_scenes())
     assert len(lines) == expected
     for line in lines:
         assert line.endswith("."), line
         assert "``" not in line and "  " not in line.split(") ", 1)[1], line
-    assert any("Halving it multiplies the particle count by 8" in l for l in lines)
+    assert any("Halving it multiplies the particle count by 8" in line for line in lines)
 
 
 @pytest.mark.parametrize("command", ["run", "surface", "render", "export", "list", "info",

@@ -77,7 +77,7 @@ def _pvpython(script, *arguments, tmp_path=None, timeout=240):
     result = subprocess.run([PVPYTHON, str(script), *map(str, arguments)], capture_output=True,
                             text=True, timeout=timeout, env=env)
     assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
-    line = next(l for l in result.stdout.splitlines() if l.startswith("PROBE "))
+    line = next(line for line in result.stdout.splitlines() if line.startswith("PROBE "))
     return json.loads(line[len("PROBE "):]), result.stderr
 
 
@@ -187,8 +187,8 @@ def test_readme_pvpython_recipe_loads_the_plugin_from_another_folder(tmp_path):
     assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
     loaded = LOADED.search(result.stdout)
     assert loaded and Path(loaded.group(1)) == PLUGIN and int(loaded.group(2)) == SCENE_COUNT
-    seen = json.loads(next(l for l in result.stdout.splitlines()
-                           if l.startswith("PROBE "))[len("PROBE "):])
+    seen = json.loads(next(line for line in result.stdout.splitlines()
+                           if line.startswith("PROBE "))[len("PROBE "):])
     scenes = {f"blobflow{name}" for name in ("bouncing", "dam_break", "hair", "cloth_drape")}
     assert {"blobflowParticleSurface"} | scenes <= set(seen["proxies"])
     assert seen["panel"]["Kernel"].strip("'") == "sph"
@@ -270,8 +270,8 @@ def _terminal_output(master, process, done, timeout=240):
 
 
 def _proxies(stdout):
-    return json.loads(next(l for l in stdout.splitlines()
-                           if l.startswith("PROBE "))[len("PROBE "):])
+    return json.loads(next(line for line in stdout.splitlines()
+                           if line.startswith("PROBE "))[len("PROBE "):])
 
 
 @pytest.mark.skipif(PVBATCH is None, reason="pvbatch not found: install Debian's 'paraview'")
@@ -354,7 +354,7 @@ def test_readme_launch_recipe_opens_the_files_after_the_plugin(series, tmp_path)
         process.wait(timeout=60)
     loaded = LOADED.search(text)
     assert loaded and Path(loaded.group(1)) == PLUGIN, text[-2000:]
-    opened = [l.split("blobflow: opened ", 1)[1].strip() for l in text.splitlines()
-              if "blobflow: opened " in l]
+    opened = [line.split("blobflow: opened ", 1)[1].strip() for line in text.splitlines()
+              if "blobflow: opened " in line]
     assert opened == [str(series), str(series.with_name("particles.vtp.series"))], text[-2000:]
     assert text.index("loaded the ParaView plugin") < text.index("blobflow: opened")

@@ -215,7 +215,7 @@ def test_paraview_temporal_interpolator_lands_on_the_id_matched_midpoint(drop_ru
                              str(out / "particles.pvd"), repr(float(t))],
                             capture_output=True, text=True, timeout=240, env=env)
     assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
-    line = next(l for l in result.stdout.splitlines() if l.startswith("PROBE "))
+    line = next(line for line in result.stdout.splitlines() if line.startswith("PROBE "))
     seen = json.loads(line[len("PROBE "):])
     ids, middle = _matched_midpoint(frames[k], frames[k + 1])
     np.testing.assert_array_equal(np.asarray(seen["id"]), ids)

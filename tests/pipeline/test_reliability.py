@@ -415,7 +415,8 @@ def _bad_values(parameter) -> list[str]:
     if kind in ("int", "float"):
         if re.search(r"(^|[^<])>=? ?0\b|\(0, |\[0, |positive", doc):
             values.append("-1")
-        match = re.search(r"(?:in|from) [\[(]\s*(-?[\d.e+-]+)\s*(?:,| to)\s*(-?[\d.e+-]+)\s*[\])]", doc)
+        match = re.search(r"(?:in|from) [\[(]\s*(-?[\d.e+-]+)\s*(?:,| to)"
+                          r"\s*(-?[\d.e+-]+)\s*[\])]", doc)
         if match:
             values.append(repr(float(match.group(2)) * 10 + 10))
     if parameter.name == "mesh":

@@ -202,8 +202,8 @@ def test_2_paraview_sources_sharing_a_cache_folder_wait_for_each_other(tmp_path)
     assert probe.returncode == 0, (out + err)[-3000:]
     writer.wait(timeout=120)
     assert writer.returncode == 0
-    seen = json.loads(next(l for l in out.splitlines()
-                           if l.startswith("PROBE "))[len("PROBE "):])
+    seen = json.loads(next(line for line in out.splitlines()
+                           if line.startswith("PROBE "))[len("PROBE "):])
     times, frames = read_series(folder / "particles.pvd")
     assert list(times) == [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
     for source in ("first", "second"):

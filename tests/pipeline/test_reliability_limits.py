@@ -242,7 +242,7 @@ def test_9_a_stray_particle_or_a_nan_leaves_the_picture_as_it_was(tmp_path, caps
     assert code == 0, err
 
 
-# -- 12. USD: no NaN, no infinity, distinct time codes ----------------------------------------------
+# -- 12. USD: no NaN, no infinity, distinct time codes ---------------------------------------------
 def test_12_export_refuses_nan_inf_and_times_that_collapse(tmp_path, capsys):
     pytest.importorskip("pxr")
     good = _cloud_series(tmp_path / "good", [np.zeros((3, 3)), np.ones((3, 3))])
@@ -268,7 +268,7 @@ def test_12_export_refuses_nan_inf_and_times_that_collapse(tmp_path, capsys):
     assert not [p for p in tmp_path.iterdir() if p.is_file()]  # no stage, no temporary
 
 
-# -- 13. unbounded resources: limits from the machine, stated ---------------------------------------
+# -- 13. unbounded resources: limits from the machine, stated --------------------------------------
 @pytest.mark.timeout(120)
 def test_13_limits_are_computed_from_the_machine_and_stated(tmp_path, capsys, monkeypatch, rng):
     before = _grown_rss()
@@ -307,13 +307,14 @@ def test_13_info_holds_one_frame_at_a_time(tmp_path):
     result = subprocess.run([sys.executable, "-c", code, str(series)], capture_output=True,
                             text=True, timeout=240, env=_env())
     assert result.returncode == 0, result.stderr
-    grown = int(next(l for l in result.stdout.splitlines() if l.startswith("GROWN")).split()[1])
+    grown = int(next(line for line in result.stdout.splitlines()
+                     if line.startswith("GROWN")).split()[1])
     frame = 250_000 * (24 + 8)  # points and ids of one frame
     assert grown < 6 * frame  # all 12 frames at once: 18 (measured 144 MiB before, 39 after)
     assert "12 frames" in result.stdout
 
 
-# -- 14. overflows, names too long, encoders: one line ----------------------------------------------
+# -- 14. overflows, names too long, encoders: one line ---------------------------------------------
 def test_14_overflows_long_names_and_encoder_limits_are_one_line(tmp_path, capsys, rng):
     series = _cloud_series(tmp_path / "a", [rng.uniform(0, 0.1, (30, 3))] * 3)
     long = "n" * 300
@@ -345,7 +346,7 @@ def test_14_overflows_long_names_and_encoder_limits_are_one_line(tmp_path, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]
 
 
-# -- 15. input mistakes are refused before the first frame -------------------------------------------
+# -- 15. input mistakes are refused before the first frame -----------------------------------------
 @pytest.mark.timeout(120)
 def test_15_input_mistakes_are_refused_before_the_first_frame(tmp_path, capsys, rng):
     points = [rng.uniform(0, 0.1, (40, 3)) for _ in range(3)]

@@ -155,7 +155,8 @@ def test_cli_render_writes_gif_with_requested_frames(series, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("content", [None, "garbage", "<VTKFile type='Collection'><Collection>"
-                                     "<DataSet timestep='0' file='p/gone.vtp'/></Collection></VTKFile>"])
+                                     "<DataSet timestep='0' file='p/gone.vtp'/>"
+                                     "</Collection></VTKFile>"])
 def test_cli_render_missing_or_malformed_series(tmp_path, capsys, content):
     path = tmp_path / "s.pvd"
     if content is not None:

@@ -106,8 +106,11 @@ def empty_tank(tmp_path_factory):
 def test_tank_edges_are_drawn_along_their_projection(empty_tank):
     path, lo, hi = empty_tank
     # the four top edges and the four vertical ones: 8 of the 12, none hidden by the bottom
-    corners = lambda z: [np.array([x, y, z]) for x, y in ((lo[0], lo[1]), (hi[0], lo[1]),
-                                                          (hi[0], hi[1]), (lo[0], hi[1]))]
+
+    def corners(z):
+        return [np.array([x, y, z]) for x, y in ((lo[0], lo[1]), (hi[0], lo[1]),
+                                                 (hi[0], hi[1]), (lo[0], hi[1]))]
+
     top = corners(hi[2])
     edges = [(top[k], top[(k + 1) % 4]) for k in range(4)]
     edges += [(a, b) for a, b in zip(corners(lo[2]), top)]
@@ -352,4 +355,4 @@ def test_smoke_hides_any_surface_contoured_around_its_particles(tmp_path):
     particles = _write(tmp_path / "particles.pvd", [smoke, smoke])
     contoured = _write(tmp_path / "smooth.pvd", [surface, surface])
     with Renderer([particles, contoured], size=SIZE, frames=[0], colliders=None) as renderer:
-        assert [(l.name, l.kind) for l in renderer.layers] == [("particles", "smoke")]
+        assert [(layer.name, layer.kind) for layer in renderer.layers] == [("particles", "smoke")]

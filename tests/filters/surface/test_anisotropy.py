@@ -1,4 +1,5 @@
-"""Anisotropic kernels (Yu & Turk 2013): filters.surface.anisotropy and filters.surface.ellipsoids."""
+"""Anisotropic kernels (Yu & Turk 2013): filters.surface.anisotropy and
+filters.surface.ellipsoids."""
 
 import math
 
