@@ -22,7 +22,8 @@ from .assignments import Parameter, parse_assignments
 from .compose import Flow
 
 if TYPE_CHECKING:
-    from typing import Any, Callable, Iterable
+    from collections.abc import Callable, Iterable
+    from typing import Any
 
 __all__ = ["Scene", "Parameter", "available_scenes", "load_scene", "ENTRY_POINT_GROUP"]
 

@@ -13,12 +13,12 @@ import pyvista as pv
 
 from filters.geometry import Box, Plane
 from pipeline.cli import main
-from pipeline.colliders import COLLIDERS_FILE, Collider, write_colliders
-from pipeline.gallery import GALLERY_SIZE, code_mtime, gallery_still, run_is_current, run_series
+from pipeline.io.colliders import COLLIDERS_FILE, Collider, write_colliders
+from pipeline.render.gallery import GALLERY_SIZE, code_mtime, gallery_still, run_is_current, run_series
 from pipeline.render import frame_at_time, interesting_frame, turntable
-from pipeline.renderer import Renderer
+from pipeline.render.renderer import Renderer
 from pipeline.scene import Scene, available_scenes, load_scene
-from pipeline.series import SeriesWriter
+from pipeline.io.series import SeriesWriter
 
 pytestmark = pytest.mark.render
 
@@ -313,7 +313,7 @@ def test_flat_faces_of_a_liquid_surface_are_shaded_flat(tmp_path):
 
 
 def test_a_liquid_surface_is_drawn_as_water_whatever_its_series_is_called(tmp_path):
-    from pipeline import looks
+    from pipeline.render import looks
     from pipeline.surface import reconstruct
 
     x = (np.mgrid[0:8, 0:8, 0:8].reshape(3, -1).T + 0.5) * 0.02

@@ -7,13 +7,13 @@ import pyvista as pv
 from filters import BallisticParticles
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
-from pipeline.series import SeriesWriter, read_series
+from pipeline.io.series import SeriesWriter, read_series
 from pipeline.surface import surface_stages
 
 pxr = pytest.importorskip("pxr", reason="usd-core is not installed (pip install -e \".[usd]\")")
 from pxr import Usd, UsdGeom  # noqa: E402
 
-from pipeline.usd import export_usd, time_codes  # noqa: E402
+from pipeline.io.usd import export_usd, time_codes  # noqa: E402
 
 FPS = 10
 
