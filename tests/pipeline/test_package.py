@@ -97,3 +97,21 @@ def test_the_package_folders_are_the_architecture():
         import pipeline.io.series
         import pipeline.surface.stages  # noqa: F401
     assert pipeline.io.series.__file__.endswith("pipeline/io/series.py")
+
+
+@pytest.mark.parametrize("package", ["pipeline", "filters"])
+def test_importing_the_package_loads_no_vtk_numba_or_numpy(package, tmp_path):
+    # issue 33: the heavy packages load when a name that needs them is first used
+    code = (f"import sys; import {package}; "
+            "print(sorted(m for m in ('vtkmodules', 'vtk', 'numba', 'numpy', 'pyvista', "
+            "'scipy') if m in sys.modules))")
+    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
+    # ... and do load when a name is used
+    name = "Flow" if package == "pipeline" else "State"
+    code = f"import sys; import {package}; {package}.{name}; print('numpy' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                            text=True, timeout=120)
+    assert result.stdout.strip() == "True", result.stderr
