@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
     from numpy.typing import ArrayLike
 
-__all__ = ["export_usd", "UsdUnavailableError", "time_codes"]
+__all__ = ["export_usd", "UsdUnavailableError", "time_codes", "curves_of_lines"]
 
 
 class UsdUnavailableError(ImportError):
@@ -134,6 +134,44 @@ def _csr(cells):
     return np.diff(offsets).astype(np.int32), indices
 
 
+def curves_of_lines(counts: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """VTK line cells as USD curves: one vertex count per curve, and the point of each vertex.
+
+    A ``UsdGeom.BasisCurves`` has no index array: curve ``c``'s vertices are the next
+    ``counts[c]`` points. Line cells that continue one another (a cell starting at the point
+    the one before it ends at: hair written as 2-point ``segments``) are joined into one curve,
+    so that a strand of ``S`` segments is one curve of ``S + 1`` vertices; any other cell is a
+    curve of its own.
+
+    Parameters
+    ----------
+    counts : (C,) int array
+        Points of every line cell (VTK's offsets, differenced).
+    indices : (sum(counts),) int array
+        The cells' point indices, cell after cell (VTK's connectivity).
+
+    Returns
+    -------
+    curve_counts : (K,) int32 array
+        Vertices of every curve (``curveVertexCounts``).
+    order : (curve_counts.sum(),) int32 array
+        The point of every curve vertex: write ``points[order]`` (and every point array so).
+    """
+    counts = np.asarray(counts, np.int64)
+    indices = np.asarray(indices, np.int64)
+    if not len(counts):
+        return np.zeros(0, np.int32), np.zeros(0, np.int32)
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    first, last = indices[starts], indices[starts + counts - 1]
+    joined = np.zeros(len(counts), bool)
+    joined[1:] = first[1:] == last[:-1]
+    keep = np.ones(len(indices), bool)
+    keep[starts[joined]] = False  # the shared point is the previous cell's last vertex
+    curve = np.cumsum(~joined) - 1
+    curve_counts = np.bincount(curve, weights=counts - joined).astype(np.int32)
+    return curve_counts, indices[keep].astype(np.int32)
+
+
 def _extent(points: np.ndarray, pad: float = 0.0) -> np.ndarray:
     if not len(points):
         return np.zeros((2, 3), np.float32)
@@ -161,7 +199,8 @@ def _write_series(stage, path: Path, name: str, times, meshes, codes, radius, Us
     if kind in ("mesh", "curves"):
         for mesh in frames:
             counts, indices = _csr(mesh.GetPolys() if kind == "mesh" else mesh.GetLines())
-            topology.append((counts, indices))
+            topology.append((counts, indices) if kind == "mesh"
+                            else curves_of_lines(counts, indices))
     fixed = bool(topology) and all(np.array_equal(c, topology[0][0])
                                    and np.array_equal(i, topology[0][1]) for c, i in topology)
     if kind == "mesh":
@@ -177,8 +216,12 @@ def _write_series(stage, path: Path, name: str, times, meshes, codes, radius, Us
     velocity_attr = widths_attr = ids_attr = normals_attr = None
     for k, (code, mesh) in enumerate(zip(codes, frames, strict=False)):
         points = np.asarray(mesh.points, dtype=np.float64).reshape(-1, 3)
+        data = {name: np.asarray(mesh.point_data[name]) for name in mesh.point_data.keys()}
+        if kind == "curves":  # the curves' vertices, curve after curve (see curves_of_lines)
+            order = topology[k][1]
+            points = points[order]
+            data = {name: values[order] for name, values in data.items()}
         points_attr.Set(_vec3(Vt, points), code)
-        data = mesh.point_data
         pad = 0.0
         if "velocity" in data.keys():
             velocity_attr = velocity_attr or prim.CreateVelocitiesAttr()

@@ -35,7 +35,7 @@ HERE = Path(__file__).parent
 ROOT = Path(__file__).resolve().parents[2]
 PLUGIN = ROOT / "pipeline" / "paraview" / "plugin.py"
 STARTUP = PLUGIN.with_name("startup.py")
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+GUIDE = (ROOT / "docs" / "user_guide" / "paraview.rst").read_text(encoding="utf-8")
 SCENE_COUNT = len(list(available_scenes()))
 
 needs_pvpython = pytest.mark.skipif(
@@ -82,12 +82,13 @@ def _pvpython(script, *arguments, tmp_path=None, timeout=240):
 
 
 def _readme_recipe(pattern):
-    """The README's ParaView recipe matching ``pattern`` (a regex on the text between
-    backticks), with PATH made this clone's root."""
-    section = README.split("### The ParaView plugin", 1)[1].split("\n## ", 1)[0]
+    """The ParaView guide's recipe matching ``pattern`` (a regex on the text between
+    backticks) in its section *Loading it* (docs/user_guide/paraview.rst; the README links
+    there), with PATH made this clone's root."""
+    section = GUIDE.split("Loading it\n~~~~~~~~~~", 1)[1].split("How it works\n", 1)[0]
     recipes = [r.replace("\n", " ") for r in re.findall(r"`([^`]+)`", section)
                if re.fullmatch(pattern, r.replace("\n", " "))]
-    assert len(recipes) == 1, f"{len(recipes)} recipes like {pattern} in the README's section"
+    assert len(recipes) == 1, f"{len(recipes)} recipes like {pattern} in the guide's section"
     return recipes[0].replace("PATH/", f"{ROOT}/")
 
 
