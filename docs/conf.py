@@ -329,7 +329,7 @@ html_theme_options = {
 }
 # pages without sections of their own: no section navigation; the benchmark table gets the width
 html_sidebars = {page: [] for page in ("index", "getting_started", "benchmarks", "design",
-                                       "changelog")}
+                                       "features", "changelog")}
 html_context = {"default_mode": "light"}
 html_show_sourcelink = False
 

@@ -21,8 +21,9 @@ from pathlib import Path
 
 import pyvista as pv
 
-from pipeline.surface.frames import surface_series from pipeline.render import render_still
+from pipeline.render import render_still
 from pipeline.scene import load_scene
+from pipeline.surface import surface_series
 from pipeline.surface.options import liquid_surface_options
 
 pv.OFF_SCREEN = True  # draw without a display

@@ -37,8 +37,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Renderer", "RenderUnavailableError", "turntable", "timelapse", "write_movie",
            "parse_size", "MOVIE_SUFFIXES", "interesting_frame", "frame_at_time", "render_run",
-           "render_still", "GL_PACKAGES", "RenderError", "FPS_RANGE", "check_fps", "max_views", "gif_limit",
-           "check_movie_length", "default_fps"]
+           "render_still", "render_frames", "GL_PACKAGES", "RenderError",
+           "FPS_RANGE", "check_fps", "max_views", "gif_limit", "check_movie_length",
+           "default_fps"]
 
 MOVIE_SUFFIXES = (".gif", ".mp4")
 
@@ -398,7 +399,7 @@ def render_frame_task(series: SeriesPaths, out_file: str, time: float, options: 
 
 def render_frames(series: SeriesPaths, out: str | Path, *, client: Any = None, turntable_frames: int | None = None,
                   time_index: int | None = None, time: float | None = None,
-                  orbit: float = 0.0, size=(640, 480),
+                  orbit: float = 0.0, size: tuple[int, int] = (640, 480),
                   color_by: str | None = None, fps: float | None = None,
                   progress: bool = True) -> Path:
     """Render a time-lapse (or a turntable) one task per image, here or on a Dask cluster.

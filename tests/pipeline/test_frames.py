@@ -7,8 +7,13 @@ import pytest
 
 from pipeline import Flow, SimulationSource, read_series
 from pipeline.cli import main
-from pipeline.surface.frames import surface_series  import _frame_tasks from _helpers import ballistic  distributed
-from pipeline.tasks import FramesError, map_frames= pytest.importorskip("dask.distributed", reason="install blobflow[dask]")
+from pipeline.surface.frames import surface_series
+from pipeline.tasks import FramesError, map_frames
+
+import _frame_tasks
+from _helpers import ballistic
+
+distributed = pytest.importorskip("dask.distributed", reason="install blobflow[dask]")
 
 
 @pytest.fixture(scope="module")

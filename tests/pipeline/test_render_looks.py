@@ -264,12 +264,14 @@ def test_scene_still_time_must_lie_within_its_duration():
         Scene("b", build, "d", duration=2.0, still=2.5)
 
 
-def test_readme_shows_the_gallery_image_of_every_scene():
+def test_docs_show_the_gallery_image_of_every_scene():
+    # the scenes' page of the user guide (the README shows one picture and links there)
+    page = (ROOT / "docs" / "user_guide" / "scenes.rst").read_text(encoding="utf-8")
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    table = readme.split("## Scenes", 1)[1].split("\n## ", 1)[0]
+    assert "docs/user_guide/scenes.rst" in readme
     for name in available_scenes():
         assert (ROOT / "docs" / f"{name}.png").is_file(), f"run `blobflow gallery {name}`"
-        assert f"docs/{name}.png" in table, f"show docs/{name}.png in the README's scene table"
+        assert f".. image:: /{name}.png" in page, f"show docs/{name}.png in the scenes' page"
 
 
 def test_gallery_draws_only_the_outputs_the_scene_draws(tmp_path):
