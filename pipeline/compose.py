@@ -48,7 +48,8 @@ class Stage:
 
 def _check_name(name: str) -> str:
     if not isinstance(name, str) or not name.isidentifier():
-        raise ValueError(f"an output name must be a Python identifier such as 'surface', got {name!r}")
+        raise ValueError(f"an output name must be a Python identifier such as 'surface', "
+                         f"got {name!r}")
     return name
 
 
@@ -121,7 +122,8 @@ class Flow:
         """
         _check_name(name)
         if name in self.stages:
-            raise ValueError(f"an output named {name!r} exists already; names: {sorted(self.stages)}")
+            raise ValueError(f"an output named {name!r} exists already; "
+                             f"names: {sorted(self.stages)}")
         write = check_bool("write", write)
         xdmf = check_bool("xdmf", xdmf)
         draw = check_bool("draw", draw)
@@ -363,7 +365,8 @@ class Flow:
         sweep_temporaries(directory)  # ours alone now (the lock): a killed run's leftovers go
         if self.colliders:
             write_colliders(self.colliders, directory / COLLIDERS_FILE)
-        writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}
+        writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume)
+                   for s in written}
         keep = self.checkpoint_path
         restart, done = self._resume_point(directory, writers) if resume else (0, 0)
         if restart == 0:

@@ -66,7 +66,8 @@ class SimulationSource(Algorithm):
                  frames: int | None = None, *, cache_size: int = 16, dataset: str | None = None,
                  checkpoint: bool = True):
         if not isinstance(simulation, Simulation):
-            raise TypeError(f"simulation must be a filters.Simulation, got {type(simulation).__name__}")
+            raise TypeError(f"simulation must be a filters.Simulation, "
+                            f"got {type(simulation).__name__}")
         spec = simulation.output_spec
         dataset = check_choice("dataset", dataset or spec.dataset, tuple(_VTK_TYPES))
         Algorithm.__init__(self, nInputPorts=0, nOutputPorts=1, outputType=_VTK_TYPES[dataset])

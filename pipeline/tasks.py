@@ -141,7 +141,8 @@ def _probe_scheduler(address: str, timeout: float | None = None) -> None:
     try:
         port = int(port_text)
     except ValueError:
-        raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}") from None
+        raise SchedulerError(f"scheduler address must be tcp://host:port, "
+                             f"got {address!r}") from None
     if not host or not 0 < port < 65536:
         raise SchedulerError(f"scheduler address must be tcp://host:port, got {address!r}")
     timeout = PROBE_TIMEOUT if timeout is None else timeout
@@ -321,7 +322,8 @@ def map_frames(input_path, output_path, task, options: dict | None = None, *, cl
         The ``.pvd`` to write; frames go to its folder ``NAME/NAME_%06d.EXT``.
     task : callable
         ``task(in_file, out_file, time, options)``, importable by name (Dask pickles it): reads
-        ``in_file``, writes ``out_file`` atomically (e.g. with :func:`pipeline.io.series.write_frame`).
+        ``in_file``, writes ``out_file`` atomically (e.g. with
+        :func:`pipeline.io.series.write_frame`).
     options : dict, optional
         Passed to every task.
     client : dask.distributed.Client, optional

@@ -16,9 +16,10 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
     :func:`pipeline.surface.options.liquid_surface_options`: the particle radius is half the
     spacing; the particles near the tank's walls are mirrored across them and the surface is
     cut exactly at its inner box (:class:`pipeline.surface.liquid.ClipBox`); every closed piece
-    of it encloses its particles' volume (:class:`pipeline.surface.liquid.VolumeCorrection`); the other
-    stages are those of :data:`pipeline.surface.options.SURFACE_DEFAULTS` (``blobflow surface``
-    rebuilds the same surface from the particle series and the run record).
+    of it encloses its particles' volume (:class:`pipeline.surface.liquid.VolumeCorrection`);
+    the other stages are those of :data:`pipeline.surface.options.SURFACE_DEFAULTS`
+    (``blobflow surface`` rebuilds the same surface from the particle series and the run
+    record).
 
     Parameters
     ----------

@@ -1,8 +1,8 @@
 """The ``blobflow`` command: :func:`main` (:mod:`~pipeline.cli.app`: ``list``, ``run``,
 ``render``, ``info``), with the ``surface`` command in :mod:`~pipeline.cli.surface`, the
-``gallery``, ``export`` and ``paraview`` commands in :mod:`~pipeline.cli.tools`, the options shared by several commands in
-:mod:`~pipeline.cli.common`, and the compilation of the surface kernels while a scene runs in
-:mod:`~pipeline.cli.warmup`.
+``gallery``, ``export`` and ``paraview`` commands in :mod:`~pipeline.cli.tools`, the options
+shared by several commands in :mod:`~pipeline.cli.common`, and the compilation of the surface
+kernels while a scene runs in :mod:`~pipeline.cli.warmup`.
 """
 
 from typing import TYPE_CHECKING

@@ -264,8 +264,9 @@ def _run_locked(args, scene, out: Path, fps: float, duration, overrides: dict) -
                          f"choose another --out or remove it")
     if args.resume and saved is not None:
         saved_params = saved.get("parameters", {})
+        saved_params = saved_params if isinstance(saved_params, dict) else {}
         saved_params = {k: (tuple(v) if isinstance(v, list) else v)
-                        for k, v in (saved_params if isinstance(saved_params, dict) else {}).items()}
+                        for k, v in saved_params.items()}
         clashes = [k for k, v in overrides.items() if k in saved_params and saved_params[k] != v]
         if clashes:
             raise UsageError(
@@ -320,7 +321,8 @@ def _run_locked(args, scene, out: Path, fps: float, duration, overrides: dict) -
         return 1
     except SimulationError as exc:
         print(f"blobflow: {exc}", file=sys.stderr)
-        print(f"blobflow: the frames written before the failure are valid in {out}", file=sys.stderr)
+        print(f"blobflow: the frames written before the failure are valid in {out}",
+              file=sys.stderr)
         return 1
     except (ValueError, TypeError, KeyError, IndexError) as exc:
         if args.resume and not started:  # restoring the checkpoint failed: nothing was changed
@@ -391,7 +393,8 @@ def _cmd_render(args) -> int:
         except ValueError as exc:
             raise UsageError(f"--{exc}") from None
     if out.suffix and out.suffix.lower() not in (".gif", ".mp4"):
-        raise UsageError(f"--out must end in .gif or .mp4, or name a folder for PNG files; got {out}")
+        raise UsageError(f"--out must end in .gif or .mp4, or name a folder for PNG files; "
+                         f"got {out}")
     _check_writable(out.parent if out.suffix else out)
     client = _client(args)
     try:
@@ -474,7 +477,8 @@ def _cmd_info(args) -> int:
     print(f"  field arrays: {', '.join(fields) or 'none'}"
           + ("; checkpointed (resumable)" if resumable else ""))
     if np.all(np.isfinite(lo)):
-        print(f"  bounds: x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g}, z {lo[2]:g} .. {hi[2]:g}")
+        print(f"  bounds: x {lo[0]:g} .. {hi[0]:g}, y {lo[1]:g} .. {hi[1]:g}, "
+              f"z {lo[2]:g} .. {hi[2]:g}")
     print(f"  points per frame: {min(counts)} .. {max(counts)}")
     for row in rows:
         print(row)

@@ -9,7 +9,8 @@ import tempfile
 from pathlib import Path
 
 __all__ = ["UsageError", "add_cluster_options", "client", "close_client", "report_memory",
-           "check_writable", "check_name_length", "check_workers", "max_workers", "cores", "WORKER_MEMORY"]
+           "check_writable", "check_name_length", "check_workers", "max_workers", "cores",
+           "WORKER_MEMORY"]
 
 
 class UsageError(Exception):

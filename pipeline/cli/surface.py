@@ -95,8 +95,9 @@ def surface_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_name_length(out, args.name, ".source.json", "--name")
     target = out / f"{args.name}.pvd"
+    input_frames = source.parent / source.name.split(".")[0]
     if (target.resolve() == source.resolve()
-            or (out / args.name).resolve() == (source.parent / source.name.split(".")[0]).resolve()):
+            or (out / args.name).resolve() == input_frames.resolve()):
         raise UsageError(f"--out {out} with --name {args.name} would overwrite the input series "
                          f"{source}; choose another --out or --name")
     if not 0 <= args.across_frames <= 10:

@@ -61,7 +61,8 @@ def add_gallery_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("gallery", help="run every scene with its defaults and draw one still of "
                        "each (the README's pictures)",
                        description="Draw one still per scene (at the scene's still time, else "
-                       "its most interesting frame; 640x480, with its colliders) from a run of the scene's defaults: a "
+                       "its most interesting frame; 640x480, with its colliders) from a run "
+                       "of the scene's defaults: a "
                        "complete run of exactly the defaults in RUNS/SCENE or in outputs/SCENE "
                        "(where `blobflow run SCENE` writes) is reused, else the scene is run "
                        "into RUNS/SCENE with --no-render.")

@@ -5,10 +5,10 @@ beside the series ``NAME.pvd`` of its first output (``particles.checkpoint.npz``
 every few frames and at the end.  The frames carry what a viewer needs; the state (positions,
 velocities and every extra array of :class:`filters.State`, bit for bit) is in this one file.
 
-The file is a NumPy ``.npz`` archive of plain numeric arrays (its bytes depend on the state
-only), written to a temporary file, flushed to disk and renamed over the previous one, so the previous checkpoint stays whole until the new
-one is complete.  It is read with ``allow_pickle=False`` and every member must be a numeric
-array: nothing in it is ever executed.  Besides ``state:NAME`` arrays
+The file is a NumPy ``.npz`` archive of plain numeric arrays (its bytes depend on the state only),
+written to a temporary file, flushed to disk and renamed over the previous one, so the previous
+checkpoint stays whole until the new one is complete.  It is read with ``allow_pickle=False`` and
+every member must be a numeric array: nothing in it is ever executed.  Besides ``state:NAME`` arrays
 (:meth:`filters.State.to_arrays`) it holds:
 
 * ``format``: (1,) int64, the layout version (1);

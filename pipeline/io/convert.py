@@ -57,8 +57,10 @@ def _to_vtk_array(name: str, values: np.ndarray):
 def _cell_array(offsets: np.ndarray, indices: np.ndarray) -> vtkCellArray:
     cells = vtkCellArray()
     cells.SetData(
-        numpy_support.numpy_to_vtkIdTypeArray(np.ascontiguousarray(offsets, dtype=np.int64), deep=True),
-        numpy_support.numpy_to_vtkIdTypeArray(np.ascontiguousarray(indices, dtype=np.int64), deep=True),
+        numpy_support.numpy_to_vtkIdTypeArray(np.ascontiguousarray(offsets, dtype=np.int64),
+                                              deep=True),
+        numpy_support.numpy_to_vtkIdTypeArray(np.ascontiguousarray(indices, dtype=np.int64),
+                                              deep=True),
     )
     return cells
 
@@ -82,7 +84,8 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
             raise ValueError(f"frame at t = {frame.time} has non-finite field data {name!r}")
     missing = names - set(frame.point_data)
     if missing:
-        raise ValueError(f"frame is missing the point arrays {sorted(missing)} its OutputSpec lists")
+        raise ValueError(f"frame is missing the point arrays {sorted(missing)} its OutputSpec "
+                         f"lists")
     cell_data = frame.cell_data or {}
     for name, values in cell_data.items():
         if np.issubdtype(np.asarray(values).dtype, np.floating) and not np.isfinite(values).all():
@@ -204,14 +207,16 @@ def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
     if dataset == "polydata":
         output = vtkPolyData()
         output.SetPoints(points)
-        {"vertices": output.SetVerts, "lines": output.SetLines, "polys": output.SetPolys}[topology](cells)
+        setters = {"vertices": output.SetVerts, "lines": output.SetLines,
+                   "polys": output.SetPolys}
+        setters[topology](cells)
     else:
         output = vtkUnstructuredGrid()
         output.SetPoints(points)
         if cell_type is None:
             raise ValueError("an unstructured grid of lines or polygons needs frame.cell_types")
-        types = numpy_support.numpy_to_vtk(np.ascontiguousarray(cell_type, dtype=np.uint8), deep=True,
-                                           array_type=3)  # VTK_UNSIGNED_CHAR
+        types = numpy_support.numpy_to_vtk(np.ascontiguousarray(cell_type, dtype=np.uint8),
+                                           deep=True, array_type=3)  # VTK_UNSIGNED_CHAR
         output.SetCells(types, cells)
 
     # Stable order: the spec's arrays first, then any others the frame adds.

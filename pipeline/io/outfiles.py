@@ -5,9 +5,9 @@ ever removed:
 
 * a series ``NAME`` is ``NAME.pvd``, ``NAME.vtp.series`` (``.vtu``/``.vti``), ``NAME.xdmf``,
   ``NAME.h5``, ``NAME.source.json`` (what a surface series was computed from),
-  ``NAME.checkpoint.npz`` (a run's checkpoint) and its frames ``NAME/NAME_<digits>.vtp`` (``.vtu``/``.vti``): a frame is removed
-  only when its name matches :func:`is_frame_name` exactly (never every ``NAME_*``), and the
-  frames folder only when it is left empty;
+  ``NAME.checkpoint.npz`` (a run's checkpoint) and its frames ``NAME/NAME_<digits>.vtp``
+  (``.vtu``/``.vti``): a frame is removed only when its name matches :func:`is_frame_name` exactly
+  (never every ``NAME_*``), and the frames folder only when it is left empty;
 * a file is written under a temporary name unique to the process (:func:`temporary_path`:
   ``.NAME.HOST-PID-TOKEN.tmp.SUFFIX``) and renamed into place (:func:`atomic_path`), which removes
   the temporary file when the writing fails or is interrupted; temporaries of processes that no

@@ -276,11 +276,13 @@ class SeriesWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         lines = [
             '<?xml version="1.0"?>',
-            '<VTKFile type="Collection" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+            '<VTKFile type="Collection" version="1.0" byte_order="LittleEndian" '
+            'header_type="UInt64">',
             "  <Collection>",
         ]
         for t, name in self.entries:
-            lines.append(f'    <DataSet timestep="{_format_time(t)}" group="" part="0" file="{name}"/>')
+            lines.append(f'    <DataSet timestep="{_format_time(t)}" group="" part="0" '
+                         f'file="{name}"/>')
         lines += ["  </Collection>", "</VTKFile>", ""]
         _atomic_write_text(self.path, "\n".join(lines))
         if self._class is not None:

@@ -251,8 +251,8 @@ def _write_series(stage, path: Path, name: str, times, meshes, codes, radius, Us
     return kind
 
 
-def export_usd(series: str | Path | Sequence[str | Path], usd_path: str | Path, *, fps: float | None = None,
-               radius: float | None = None) -> Path:
+def export_usd(series: str | Path | Sequence[str | Path], usd_path: str | Path, *,
+               fps: float | None = None, radius: float | None = None) -> Path:
     """Write one or more series as one USD stage, one time sample per frame.
 
     Parameters
@@ -263,8 +263,8 @@ def export_usd(series: str | Path | Sequence[str | Path], usd_path: str | Path, 
     usd_path : str or Path
         Output stage: ``.usd`` / ``.usdc`` (binary crate) or ``.usda`` (text).
     fps : float, optional
-        Time codes per second, in (0, 1e6]; default the producing run's ``fps`` (its ``scene.json``),
-        else one over the median time step of the first series.
+        Time codes per second, in (0, 1e6]; default the producing run's ``fps`` (its
+        ``scene.json``), else one over the median time step of the first series.
     radius : float, optional
         Particle and strand radius (m, > 0) for the ``widths`` where a series has no ``radius``
         array, finite; default half the run's ``spacing``, else 0.005 m.
@@ -360,7 +360,8 @@ def _write_stage(tmp, names, paths, loaded, all_codes, fps, radius, Usd, UsdGeom
         stage.SetEndTimeCode(float(codes.max()))
     root = UsdGeom.Xform.Define(stage, "/blobflow")
     stage.SetDefaultPrim(root.GetPrim())
-    for name, path, (times, meshes), series_codes in zip(names, paths, loaded, all_codes, strict=False):
+    for name, path, (times, meshes), series_codes in zip(names, paths, loaded, all_codes,
+                                                          strict=False):
         _write_series(stage, path, name, times, meshes, [float(c) for c in series_codes],
                       radius, UsdGeom, Vt)
     stage.GetRootLayer().Save()

@@ -186,7 +186,8 @@ def main(argv=None) -> int:
     from filters.simulation import SimulationError
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    usage = "usage: python -m pipeline.paraview.bridge describe | surface IN OUT OPTIONS_JSON | serve"
+    usage = ("usage: python -m pipeline.paraview.bridge describe | surface IN OUT OPTIONS_JSON "
+             "| serve")
     try:
         if argv == ["describe"]:
             print(json.dumps(describe()))

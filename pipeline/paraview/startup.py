@@ -127,8 +127,8 @@ def _blobflow_plugin_path():
              or from_command_line() or from_prompt() or from_blobflow())
     if found is None:
         raise RuntimeError(
-            "blobflow: cannot tell where pipeline/paraview/startup.py is (exec'd at a prompt?): set "
-            "BLOBFLOW_PYTHON to the python of blobflow's environment, or run "
+            "blobflow: cannot tell where pipeline/paraview/startup.py is (exec'd at a prompt?): "
+            "set BLOBFLOW_PYTHON to the python of blobflow's environment, or run "
             "`pvpython PATH/pipeline/paraview/startup.py`")
     return found
 

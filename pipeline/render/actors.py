@@ -1,5 +1,6 @@
 """The VTK pieces of the renders: shadow passes, collider, smoke, glyph, label and colour-bar
-actors (used by :class:`pipeline.render.renderer.Renderer`; looks from :mod:`pipeline.render.looks`)."""
+actors (used by :class:`pipeline.render.renderer.Renderer`; looks from
+:mod:`pipeline.render.looks`)."""
 
 from __future__ import annotations
 

@@ -73,7 +73,8 @@ def robust_bounds(points: ArrayLike, percent: float = ROBUST_PERCENT) -> np.ndar
 CLIP_REACH = 4.0
 
 
-def clipping_range(fitted: tuple[float, float], distance: float, radius: float) -> tuple[float, float]:
+def clipping_range(fitted: tuple[float, float], distance: float,
+                   radius: float) -> tuple[float, float]:
     """The camera's near and far clipping distances (m).
 
     ``fitted`` is VTK's range fitted to every actor. A particle flying far away (or a NaN

@@ -73,8 +73,8 @@ def is_liquid_surface(name: str, data: vtkDataObject) -> bool:
     """Whether a frame is a liquid's surface, drawn as water (and measured by its area).
 
     What the frame says it is decides: ``blobflow_kind`` = ``liquid_surface`` in its field data
-    (written by the surface stages, :class:`pipeline.surface.liquid.SurfaceKind`), whatever its series
-    is called. A frame without the tag (series written before it existed) is one when it is
+    (written by the surface stages, :class:`pipeline.surface.liquid.SurfaceKind`), whatever its
+    series is called. A frame without the tag (series written before it existed) is one when it is
     polygonal data and its series' name starts with ``surface``.
 
     Parameters

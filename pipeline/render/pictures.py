@@ -130,8 +130,8 @@ def frame_at_time(series: SeriesPaths, time: float) -> int:
     return int(np.argmin(np.abs(times - time)))
 
 
-def write_movie(images: Iterable[np.ndarray], out: str | Path, *, fps: float = 24.0, count: int | None = None,
-                progress: bool = True, desc: str = "render") -> Path:
+def write_movie(images: Iterable[np.ndarray], out: str | Path, *, fps: float = 24.0,
+                count: int | None = None, progress: bool = True, desc: str = "render") -> Path:
     """Write images to ``out``: a ``.gif``, an ``.mp4`` or a folder of numbered PNG files.
 
     Parameters
@@ -237,7 +237,8 @@ def max_views(size: tuple[int, int], out: str | Path) -> tuple[int, str]:
     return limit, why
 
 
-def check_movie_length(count: int, size: tuple[int, int], out: str | Path, *, turntable: bool) -> None:
+def check_movie_length(count: int, size: tuple[int, int], out: str | Path, *,
+                       turntable: bool) -> None:
     """Refuse, before drawing, a movie of more images than :func:`max_views` (a turntable)
     or :func:`gif_limit` (a GIF) allow; the message states the limit and why."""
     if turntable:
@@ -271,8 +272,9 @@ def _turntable_index(series, time_index, time) -> tuple[int, str]:
     return interesting_frame(series)
 
 
-def turntable(series: SeriesPaths, out: str | Path, *, frames: int = 36, time_index: int | None = None,
-              time: float | None = None, size: tuple[int, int] = (640, 480),
+def turntable(series: SeriesPaths, out: str | Path, *, frames: int = 36,
+              time_index: int | None = None, time: float | None = None,
+              size: tuple[int, int] = (640, 480),
               color_by: str | None = None,
               fps: float = 24.0, progress: bool = True) -> Path:
     """Orbit the camera once around one time step of ``series``: a seamless loop.
@@ -355,9 +357,10 @@ def render_run(series_paths: Sequence[str | Path], directory: str | Path, *,
 
     A turntable GIF of the frame nearest ``time`` (s; a scene's
     :attr:`~pipeline.scene.Scene.still`) when the run reaches it, else of the most interesting
-    frame (``turntable.gif``, ``turntable_frames`` distinct views) and a time-lapse MP4 of all frames with a slow quarter orbit
-    (``movie.mp4``), both ``size`` and in ``directory``, drawn by one renderer framed on the
-    whole run (each frame is read once to frame the camera and pick the turntable's time).
+    frame (``turntable.gif``, ``turntable_frames`` distinct views) and a time-lapse MP4 of all
+    frames with a slow quarter orbit (``movie.mp4``), both ``size`` and in ``directory``, drawn by
+    one renderer framed on the whole run (each frame is read once to frame the camera and pick
+    the turntable's time).
 
     Returns
     -------
@@ -397,8 +400,9 @@ def render_frame_task(series: SeriesPaths, out_file: str, time: float, options: 
         imageio.imwrite(tmp, image)
 
 
-def render_frames(series: SeriesPaths, out: str | Path, *, client: Any = None, turntable_frames: int | None = None,
-                  time_index: int | None = None, time: float | None = None,
+def render_frames(series: SeriesPaths, out: str | Path, *, client: Any = None,
+                  turntable_frames: int | None = None, time_index: int | None = None,
+                  time: float | None = None,
                   orbit: float = 0.0, size: tuple[int, int] = (640, 480),
                   color_by: str | None = None, fps: float | None = None,
                   progress: bool = True) -> Path:

@@ -9,8 +9,8 @@ colliders of the run (``colliders.vtp`` beside the series, :mod:`pipeline.io.col
 with them: containers as glass with dark edges, solids in a neutral grey, and the floor where
 the scene declares it.  A key spotlight casts shadows (VTK's shadow-map pass) onto the floor and
 the bodies, so contact reads; the camera is framed once from robust bounds
-(:mod:`pipeline.render.framing`), so it neither jumps nor follows stray drops.  Images are rendered at
-:data:`SUPERSAMPLE` times the size and box-filtered down.
+(:mod:`pipeline.render.framing`), so it neither jumps nor follows stray drops.  Images are
+rendered at :data:`SUPERSAMPLE` times the size and box-filtered down.
 """
 
 from __future__ import annotations
@@ -226,7 +226,8 @@ class Renderer:
             names = set()
             for layer in self.layers:
                 names |= set(self._frame(layer, indices[0] if indices else 0).point_data.keys())
-            raise ValueError(f"color_by must name a point array; arrays: {', '.join(sorted(names)) or 'none'}")
+            raise ValueError(f"color_by must name a point array; "
+                             f"arrays: {', '.join(sorted(names)) or 'none'}")
         framed = [c for c in self.colliders if c.role != "floor"]
         if fixed_bounds is not None:
             bounds = np.asarray(fixed_bounds, dtype=np.float64).reshape(6)
@@ -376,8 +377,8 @@ class Renderer:
 
     def _without_strays(self, data):
         """A point cloud without its NaN points and those beyond the clipping reach
-        (:data:`pipeline.render.framing.CLIP_REACH` framed radii from the centre): out of the picture
-        anyway, they would stretch VTK's bounds and with them the shadows' frustum."""
+        (:data:`pipeline.render.framing.CLIP_REACH` framed radii from the centre): out of the
+        picture anyway, they would stretch VTK's bounds and with them the shadows' frustum."""
         if data.n_points == 0:
             return data
         points = _points_of(data)
@@ -467,8 +468,8 @@ class Renderer:
 
     def interesting(self) -> tuple[int, str]:
         """The most interesting of the frames the renderer was framed on, and why
-        (:func:`pipeline.render.framing.interesting_index`: largest liquid surface area, else largest
-        kinetic energy, else the last frame)."""
+        (:func:`pipeline.render.framing.interesting_index`: largest liquid surface area, else
+        largest kinetic energy, else the last frame)."""
         indices, areas, energies = self._measures
         if not indices:
             return 0, "last frame"

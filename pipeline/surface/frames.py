@@ -112,9 +112,9 @@ def surface_series(particles_path, output_path, *, client=None, resume: bool = F
     """Reconstruct the surface of every frame of a particle series.
 
     ``surface_options`` are those of :func:`pipeline.surface.surface_stages` (``radius``,
-    ``cell_size``, ``kernel``, ``smooth_iterations``, ...).  See :func:`pipeline.tasks.map_frames` for
-    ``client`` and ``resume``. ``across_frames`` ``K`` in [0, 10]: with ``K > 0`` every
-    frame's surface is then smoothed with those of the ``K`` frames on each side
+    ``cell_size``, ``kernel``, ``smooth_iterations``, ...).  See :func:`pipeline.tasks.map_frames`
+    for ``client`` and ``resume``. ``across_frames`` ``K`` in [0, 10]: with ``K > 0`` every frame's
+    surface is then smoothed with those of the ``K`` frames on each side
     (:mod:`pipeline.surface.across_frames`; the particles need an ``id`` array).
 
     What the frames are computed from (the input's frames and the options) is recorded beside

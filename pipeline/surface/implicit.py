@@ -55,7 +55,6 @@ from .particle_stages import (
     radii_from,
 )
 
-
 __all__ = ["MetaballSplat", "MarchingCubes"]
 
 

@@ -59,8 +59,8 @@ class Smooth(MeshFilter):
         lattice-filled ball (area within 1 % of the sphere's) while moving its enclosed volume
         by less than 0.1 %.
     walls : filters.geometry.Box, optional
-        The tank a surface was cut at (:class:`pipeline.surface.liquid.ClipBox`): its flat faces on the
-        walls are left out of the smoothing and the vertices on the walls stay where they are
+        The tank a surface was cut at (:class:`pipeline.surface.liquid.ClipBox`): its flat faces
+        on the walls are left out of the smoothing and the vertices on the walls stay where they are
         (the windowed sinc would pull the cut's edges off the walls).
     """
 

@@ -64,7 +64,8 @@ SURFACE_DEFAULTS: dict[str, Any] = {name: OPTION_DEFAULTS[name] for name in (
 
 def liquid_surface_options(spacing: float, tank_lo: ArrayLike | None = None,
                            tank_hi: ArrayLike | None = None, **options: Any) -> dict[str, Any]:
-    """Options of :func:`pipeline.surface.surface_stages` for a liquid of particle spacing ``spacing`` (m).
+    """Options of :func:`pipeline.surface.surface_stages` for a liquid of particle spacing
+    ``spacing`` (m).
 
     The particle radius is half the spacing (kernel support of two spacings, as splashsurf
     uses); with a tank, its inner box ``[tank_lo, tank_hi]`` (m) bounds the liquid: the

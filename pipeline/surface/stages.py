@@ -117,12 +117,13 @@ def surface_stages(radius: float = _D["radius"], cell_size: float | None = _D["c
 
     ``flow.add("surface", *surface_stages(radius=0.01, liquid=True), input="particles")``.
     :class:`MetaballSplat`, :class:`MarchingCubes`, with ``mirror_walls`` and a
-    :class:`filters.geometry.Box` intersected with the field a :class:`pipeline.surface.liquid.ClipBox`
-    (the smoothing then keeps the cut faces on the walls), :class:`FeatureSmoothing`,
-    :class:`InterpolateAttributes`, :class:`Smooth`, :class:`pipeline.surface.liquid.VolumeCorrection`,
-    :class:`Normals`, each left out where its option switches it off, and last
-    :class:`pipeline.surface.liquid.SurfaceKind`, which writes ``blobflow_kind`` (``liquid_surface``
-    with ``liquid=True``, else ``particle_surface``) into the surface's field data.
+    :class:`filters.geometry.Box` intersected with the field a
+    :class:`pipeline.surface.liquid.ClipBox` (the smoothing then keeps the cut faces on the
+    walls), :class:`FeatureSmoothing`, :class:`InterpolateAttributes`, :class:`Smooth`,
+    :class:`pipeline.surface.liquid.VolumeCorrection`, :class:`Normals`, each left out where its
+    option switches it off, and last :class:`pipeline.surface.liquid.SurfaceKind`, which writes
+    ``blobflow_kind`` (``liquid_surface`` with ``liquid=True``, else ``particle_surface``) into
+    the surface's field data.
     :func:`pipeline.surface.options.liquid_surface_options` gives a liquid's options (its
     radius, its tank, ``liquid=True``): the liquid scenes' surface.
 
@@ -207,7 +208,8 @@ def _point_cloud(points_or_dataset):
     return pv.PolyData(np.ascontiguousarray(points, dtype=np.float64))
 
 
-def reconstruct(points_or_dataset: ArrayLike | vtkPointSet | vtkDataSet, radius: float, *, cell_size: float | None = _D["cell_size"],
+def reconstruct(points_or_dataset: ArrayLike | vtkPointSet | vtkDataSet, radius: float, *,
+                cell_size: float | None = _D["cell_size"],
                 kernel: str = _D["kernel"], anisotropic: bool = _D["anisotropic"],
                 feature_smoothing: int = _D["feature_smoothing"],
                 smooth_iterations: int = _D["smooth_iterations"],
@@ -261,7 +263,8 @@ def reconstruct(points_or_dataset: ArrayLike | vtkPointSet | vtkDataSet, radius:
         ``particle_surface``.
     volume_correction : bool, optional
         Offset every closed piece of the surface along its normals until it encloses its
-        particles' volume, ``(2 radius)^3`` each (:class:`pipeline.surface.liquid.VolumeCorrection`).
+        particles' volume, ``(2 radius)^3`` each
+        (:class:`pipeline.surface.liquid.VolumeCorrection`).
         Default (None): as ``liquid``. Not with an ``implicit`` shape in a union.
     support_r : float, optional
         Kernel support over the radius, in (0, 1000]; default the kernel's.
