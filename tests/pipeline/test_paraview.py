@@ -315,7 +315,7 @@ def test_readme_recipe_piped_to_pvpython_asks_blobflows_python(tmp_path):
                             "print(pipeline.__file__)"], capture_output=True, text=True,
                            env=_environment(tmp_path), check=True).stdout.strip()
     loaded = LOADED.search(result.stdout)
-    assert loaded and Path(loaded.group(1)) == Path(where).with_name("plugin.py")
+    assert loaded and Path(loaded.group(1)) == Path(where).parent / "paraview" / "plugin.py"
     assert len(_proxies(result.stdout)) == 1 + SCENE_COUNT
     # and without any hint: one line saying what to set
     env = _environment(tmp_path)
