@@ -115,3 +115,15 @@ def test_importing_the_package_loads_no_vtk_numba_or_numpy(package, tmp_path):
     result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                             text=True, timeout=120)
     assert result.stdout.strip() == "True", result.stderr
+
+
+@pytest.mark.parametrize("package, module", [("pipeline.render", "pipeline.render.pictures"),
+                                             ("pipeline.surface", "pipeline.surface.stages")])
+def test_a_package_that_replaced_a_module_exports_all_it_had(package, module):
+    # pipeline.render and pipeline.surface were modules: every name of theirs imports as before
+    old = importlib.import_module(module)
+    new = importlib.import_module(package)
+    missing = [n for n in old.__all__ if n not in new.__all__]
+    assert missing == []
+    for name in old.__all__:
+        assert getattr(new, name) is getattr(old, name)
