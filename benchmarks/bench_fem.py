@@ -154,7 +154,7 @@ def contouring(case, repeats):
     from filters.surface.mesh import mesh_stats
     from filters.surface.splat import splat_sparse
     from filters.surface.tetra import contour_grid
-    from pipeline.contour import contour_sparse
+    from pipeline.surface.contour import contour_sparse
 
     n = {"block_100k": (50, 50, 40), "block_1m": (100, 100, 100)}[case]
     x = _block(n)

@@ -1,7 +1,7 @@
 """Liquid surfaces in motion: drops keep their volume, pools keep their water, frames do not
 flicker.
 
-blobflow's scene surface (``scenes/liquid_surface.py``: :func:`pipeline.surface_options.
+blobflow's scene surface (``scenes/liquid_surface.py``: :func:`pipeline.surface.options.
 liquid_surface_options`, i.e. anisotropic kernels, ghosts across the tank walls, feature and
 windowed-sinc smoothing, volume correction, the tank intersected) side by side with
 pysplashsurf's smoothed surface (``reconstruction_pipeline``: particle radius = spacing / 2,
@@ -100,9 +100,9 @@ def scene_surface(x, spacing, tank=None, **options):
     import pyvista as pv
 
     from pipeline.algorithm import run_chain
-    from pipeline.contour import polydata_to_mesh
+    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import surface_stages
-    from pipeline.surface_options import liquid_surface_options
+    from pipeline.surface.options import liquid_surface_options
 
     lo, hi = tank if tank is not None else (None, None)
     opts = liquid_surface_options(spacing, lo, hi, normals=False, attributes=(), **options)
@@ -131,14 +131,14 @@ def splashsurf_surface(x, spacing):
 def splashsurf_at_the_scenes_volume(x, spacing, tank, mesh):
     """pysplashsurf's surface ``mesh`` (points, triangles) held at the volume the scenes' surface
     keeps: cut at the tank's walls and every closed piece offset to enclose its particles'
-    ``N s^3`` by the scenes' own stages (:class:`pipeline.liquid.ClipBox`,
-    :class:`pipeline.liquid.VolumeCorrection`, same cell and limits): the peer at the same
+    ``N s^3`` by the scenes' own stages (:class:`pipeline.surface.liquid.ClipBox`,
+    :class:`pipeline.surface.liquid.VolumeCorrection`, same cell and limits): the peer at the same
     volume accuracy; (points, triangles)."""
     import pyvista as pv
 
     from pipeline.algorithm import update
-    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
-    from pipeline.liquid import ClipBox, VolumeCorrection
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface.liquid import ClipBox, VolumeCorrection
 
     points, tris = mesh
     box = Box(*tank)
@@ -180,7 +180,7 @@ def signed_distances(points, mesh):
     from vtkmodules.vtkFiltersCore import vtkImplicitPolyDataDistance
     from vtkmodules.vtkFiltersGeneral import vtkSampleImplicitFunctionFilter
 
-    from pipeline.contour import mesh_to_polydata
+    from pipeline.surface.contour import mesh_to_polydata
 
     if len(points) == 0:
         return np.zeros(0)
@@ -249,7 +249,7 @@ def scene_frames(scene, *settings):
     """Times, positions (F, N, 3, in the order of the particles' ids) and the parameters of a
     scene run at its defaults but ``settings`` (``NAME=VALUE``), without its surface."""
     from pipeline.cli import main
-    from pipeline.series import read_series
+    from pipeline.io.series import read_series
 
     with tempfile.TemporaryDirectory() as tmp:
         extra = [a for setting in settings for a in ("--set", setting)]
@@ -455,11 +455,11 @@ def run_motion(report, *settings):
 def across_frames(meshes, frames, spacing, tank):
     """The scene's surfaces filtered across five frames, as ``blobflow surface --across-frames
     2`` writes them (:func:`filters.surface.temporal.follow_particles_across_frames`, weights
-    :func:`pipeline.across_frames.weights_across`; every particle is in every frame, in the
+    :func:`pipeline.surface.across_frames.weights_across`; every particle is in every frame, in the
     order of its id)."""
     from filters.surface.linecast import TriangleGrid
     from filters.surface.temporal import follow_particles_across_frames
-    from pipeline.across_frames import weights_across
+    from pipeline.surface.across_frames import weights_across
 
     w = weights_across(2)  # frames k-2 .. k+2: 1, 2, 3, 2, 1 over 9
     rows = np.arange(frames.shape[1])

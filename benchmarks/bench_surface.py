@@ -144,7 +144,7 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
         warm = lambda: None  # noqa: E731
     elif tool == "blobflow":
         from filters.surface.splat import splat_sparse
-        from pipeline.contour import contour_sparse
+        from pipeline.surface.contour import contour_sparse
 
         def run():
             t0 = time.perf_counter()
@@ -250,7 +250,7 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
 def measure_mesh(row: dict, mesh_path: str) -> None:
     """Mesh measures (and, for blobflow, the smoothing stage) in the parent process."""
     from filters.surface.mesh import mesh_stats
-    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
     from pipeline.surface import Smooth
 
     data = np.load(mesh_path)

@@ -14,14 +14,20 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 from filters.validation import check_bool, check_int, check_range
 
 from .algorithm import connect_chain, update
-from .checkpoint import (CHECKPOINT_SUFFIX, Checkpoint, CheckpointError, file_digest,
-                         read_checkpoint, write_checkpoint)
-from .colliders import COLLIDERS_FILE, Collider, write_colliders
-from .convert import has_state, state_from_dataset
-from .folderlock import holds_folder
-from .outfiles import sweep_temporaries
-from .series import SeriesWriter, read_frame
-from .xdmf import export_xdmf
+from .io.checkpoint import (
+    CHECKPOINT_SUFFIX,
+    Checkpoint,
+    CheckpointError,
+    file_digest,
+    read_checkpoint,
+    write_checkpoint,
+)
+from .io.colliders import COLLIDERS_FILE, Collider, write_colliders
+from .io.convert import has_state, state_from_dataset
+from .io.folderlock import holds_folder
+from .io.outfiles import sweep_temporaries
+from .io.series import SeriesWriter, read_frame
+from .io.xdmf import export_xdmf
 from .sources import SimulationSource
 
 __all__ = ["Flow", "Stage"]
@@ -42,7 +48,8 @@ class Stage:
 
 def _check_name(name: str) -> str:
     if not isinstance(name, str) or not name.isidentifier():
-        raise ValueError(f"an output name must be a Python identifier such as 'surface', got {name!r}")
+        raise ValueError(f"an output name must be a Python identifier such as 'surface', "
+                         f"got {name!r}")
     return name
 
 
@@ -104,7 +111,7 @@ class Flow:
             Write this output as a series when the flow runs.
         xdmf : bool
             Also export the series as XDMF + HDF5 at the end (fixed topology only,
-            :func:`pipeline.xdmf.export_xdmf`).
+            :func:`pipeline.io.xdmf.export_xdmf`).
         draw : bool
             Whether the renders of a run draw this output.
 
@@ -115,7 +122,8 @@ class Flow:
         """
         _check_name(name)
         if name in self.stages:
-            raise ValueError(f"an output named {name!r} exists already; names: {sorted(self.stages)}")
+            raise ValueError(f"an output named {name!r} exists already; "
+                             f"names: {sorted(self.stages)}")
         write = check_bool("write", write)
         xdmf = check_bool("xdmf", xdmf)
         draw = check_bool("draw", draw)
@@ -136,7 +144,7 @@ class Flow:
         """Declare a floor, container or solid collider of the scene, written as ``colliders.vtp``.
 
         :meth:`run` writes every declared collider beside the series
-        (:mod:`pipeline.colliders`); the renderer draws them.  Declare the shapes the simulation
+        (:mod:`pipeline.io.colliders`); the renderer draws them.  Declare the shapes the simulation
         uses, so that what is drawn is what the bodies touch.
 
         Parameters
@@ -152,7 +160,7 @@ class Flow:
 
         Returns
         -------
-        pipeline.colliders.Collider
+        pipeline.io.colliders.Collider
         """
         collider = Collider(name, shape, role, size)
         if any(c.name == collider.name for c in self.colliders):
@@ -236,7 +244,7 @@ class Flow:
     @property
     def checkpoint_path(self) -> Path | None:
         """The checkpoint file of a run in folder ``DIR``, relative: ``NAME.checkpoint.npz``
-        for the first output ``NAME`` (:mod:`pipeline.checkpoint`); ``None`` when the source
+        for the first output ``NAME`` (:mod:`pipeline.io.checkpoint`); ``None`` when the source
         keeps none (``SimulationSource(checkpoint=False)``)."""
         if not self.source.checkpoint:
             return None
@@ -312,7 +320,7 @@ class Flow:
         write_checkpoint(directory / self.checkpoint_path,
                          Checkpoint(state, index, float(self.times[index]), digests))
 
-    @holds_folder("directory")  # one writer per folder (pipeline.folderlock)
+    @holds_folder("directory")  # one writer per folder (pipeline.io.folderlock)
     def run(self, directory, *, resume: bool = False, progress: bool = True,
             on_frame=None, checkpoint_every: int = 10,
             checkpoint_seconds: float = 300.0) -> dict[str, Path]:
@@ -357,7 +365,8 @@ class Flow:
         sweep_temporaries(directory)  # ours alone now (the lock): a killed run's leftovers go
         if self.colliders:
             write_colliders(self.colliders, directory / COLLIDERS_FILE)
-        writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}
+        writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume)
+                   for s in written}
         keep = self.checkpoint_path
         restart, done = self._resume_point(directory, writers) if resume else (0, 0)
         if restart == 0:

@@ -10,7 +10,7 @@ from pathlib import Path
 from vtkmodules.vtkIOXML import (vtkXMLImageDataWriter, vtkXMLPolyDataWriter,
                                  vtkXMLUnstructuredGridWriter)
 
-from pipeline.series import read_frame
+from pipeline.io.series import read_frame
 
 _WRITERS = {".vtp": vtkXMLPolyDataWriter, ".vtu": vtkXMLUnstructuredGridWriter,
             ".vti": vtkXMLImageDataWriter}

@@ -4,19 +4,21 @@ type hints, resolvable names included."""
 import ast
 import importlib
 import inspect
-import tomllib
 import typing
 from pathlib import Path
 
 import pytest
+import tomllib
 
 ROOT = Path(__file__).resolve().parent.parent
 
 #: Modules whose public functions and methods (their ``__all__``) are annotated throughout.
-ANNOTATED = ["accessor", "across_frames", "actors", "algorithm", "assignments", "cli_surface",
-             "cli_tools", "colliders", "contour", "embedding", "feedback", "framing", "gallery",
-             "liquid", "looks", "mesh_stages", "particle_stages", "render", "renderer", "scene",
-             "surface", "surface_options", "usd", "warmup", "xdmf"]
+ANNOTATED = ["accessor", "algorithm", "assignments", "embedding", "feedback", "scene",
+             "cli.surface", "cli.tools", "cli.warmup", "io.colliders", "io.usd", "io.xdmf",
+             "render.actors", "render.framing", "render.gallery", "render.looks",
+             "render.pictures", "render.renderer", "surface.across_frames", "surface.contour",
+             "surface.liquid", "surface.mesh_stages", "surface.options",
+             "surface.particle_stages", "surface.stages"]
 _VTK_METHODS = {"RequestData", "RequestInformation", "RequestUpdateExtent", "ProcessRequest",
                 "RequestDataObject", "FillInputPortInformation", "FillOutputPortInformation"}
 

@@ -123,7 +123,8 @@ def fbm_value(p, x, y, z, frequency, octaves, lacunarity, gain, ox, oy, oz, turb
 
 @njit(cache=True)
 def fbm_value_grad_hess(p, x, y, z, frequency, octaves, lacunarity, gain, ox, oy, oz):
-    """fBm value, gradient (1/m) and Hessian (1/m^2) at one point (no turbulence: |N| is not C1).
+    """fBm value, gradient (1/m) and Hessian (1/m^2) at one point (no turbulence: ``|N|`` is
+    not C1).
 
     Returns the 10-tuple ``v, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz``.
     """

@@ -9,7 +9,7 @@ plane, facing away from the kept side, must follow (reversed boundary edges of t
 so that mesh + cap is closed again. Point data are interpolated linearly at the new vertices.
 Cutting by the six planes of a box one after the other (each cap cut by the next planes like
 any face) gives the surface of a liquid cut exactly at the walls of its tank; the caps are
-triangulated by the caller (``pipeline.liquid.ClipBox``).
+triangulated by the caller (``pipeline.surface.liquid.ClipBox``).
 """
 
 from __future__ import annotations

@@ -28,8 +28,8 @@ __all__ = ["mirror_ghosts", "check_walls", "mirror_matrices", "grow_walls", "WAL
 
 #: How far beyond the walls (over the largest particle radius ``r``: one spacing) the field of a
 #: liquid with ghosts is computed: the surface crosses the walls there and is cut exactly at
-#: them afterwards (``pipeline.liquid.ClipBox``), so that neither the marching cubes' sampling of
-#: the edges and corners nor the smoothing of the mesh reach the walls.
+#: them afterwards (``pipeline.surface.liquid.ClipBox``), so that neither the marching cubes'
+#: sampling of the edges and corners nor the smoothing of the mesh reach the walls.
 WALL_MARGIN_R = 2.0
 
 

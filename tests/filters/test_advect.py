@@ -207,7 +207,7 @@ def test_validation():
 
 
 def test_noise_smoke_scene_writes_points_and_surface(tmp_path):
-    from pipeline.series import read_series
+    from pipeline.io.series import read_series
     from scenes.noise_smoke import SCENE
 
     assert all(p.doc for p in SCENE.parameters.values())  # every parameter documented
@@ -231,7 +231,7 @@ def test_noise_smoke_scene_writes_points_and_surface(tmp_path):
 
 
 def test_noise_smoke_resumes_bit_identically_from_disk(tmp_path):
-    from pipeline.series import read_series
+    from pipeline.io.series import read_series
     from scenes.noise_smoke import SCENE
 
     def run(directory, frames, resume=False):

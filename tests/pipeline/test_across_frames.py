@@ -9,8 +9,9 @@ import pyvista as pv
 from filters.surface.temporal import normal_offsets, vertex_normals
 from pipeline import read_series
 from pipeline.cli import main
-from pipeline.frames import FramesError, surface_series
-from pipeline.series import SeriesWriter
+from pipeline.io.series import SeriesWriter
+from pipeline.surface.frames import surface_series
+from pipeline.tasks import FramesError
 
 SPACING = 0.02
 OPTIONS = dict(radius=0.5 * SPACING, smooth_iterations=10, feature_smoothing=10)

@@ -5,7 +5,7 @@ import pytest
 import pyvista as pv
 
 from filters import Frame, OutputSpec, State
-from pipeline.convert import frame_to_vtk, state_from_dataset, state_to_field_data
+from pipeline.io.convert import frame_to_vtk, state_from_dataset, state_to_field_data
 
 
 def _frame(points, connectivity=None, cell_types=None):

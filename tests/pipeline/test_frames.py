@@ -7,7 +7,8 @@ import pytest
 
 from pipeline import Flow, SimulationSource, read_series
 from pipeline.cli import main
-from pipeline.frames import FramesError, map_frames, surface_series
+from pipeline.surface.frames import surface_series
+from pipeline.tasks import FramesError, map_frames
 
 import _frame_tasks
 from _helpers import ballistic

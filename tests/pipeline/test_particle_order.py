@@ -15,9 +15,9 @@ import pytest
 
 from filters.simulation import Frame, OutputSpec, Simulation, State
 from pipeline import Flow, SimulationSource
-from pipeline.convert import frame_to_vtk, id_order
+from pipeline.io.convert import frame_to_vtk, id_order
 from pipeline.scene import load_scene
-from pipeline.series import read_collection, read_series
+from pipeline.io.series import read_collection, read_series
 
 HERE = Path(__file__).parent
 PVPYTHON = shutil.which("pvpython")
@@ -188,7 +188,7 @@ def test_usd_time_samples_interpolate_to_the_id_matched_midpoint(drop_run, tmp_p
     pytest.importorskip("pxr", reason="usd-core is not installed")
     from pxr import Usd, UsdGeom
 
-    from pipeline.usd import export_usd
+    from pipeline.io.usd import export_usd
 
     out, _, times, frames = drop_run
     usd = export_usd([out / "particles.pvd"], tmp_path / "drop.usda", fps=10)

@@ -16,7 +16,7 @@ from filters import BallisticParticles
 from pipeline import Flow, SimulationSource, read_series
 from pipeline.feedback import BlobflowWarning, CompileNotice, compile_notice
 from pipeline.surface import reconstruct, surface_stages
-from pipeline.surface_options import OPTION_DEFAULTS, SURFACE_PARAMETERS
+from pipeline.surface.options import OPTION_DEFAULTS, SURFACE_PARAMETERS
 
 RADIUS = 0.005
 OPTIONS = dict(kernel="sph", anisotropic=True, feature_smoothing=5, smooth_iterations=10)

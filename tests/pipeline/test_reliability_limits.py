@@ -20,12 +20,12 @@ import pyvista as pv
 from filters.memory import MEMORY_ENV
 from filters.surface import crowding
 from filters.surface.crowding import CrowdingError, check_crowding, pair_work_limit
-from pipeline import bridge
+from pipeline.paraview import bridge
 from pipeline.cli import main
-from pipeline.cli_common import max_workers
-from pipeline.contour import brick_chunk
+from pipeline.cli.common import max_workers
+from pipeline.surface.contour import brick_chunk
 from pipeline.render import max_views
-from pipeline.series import SeriesWriter
+from pipeline.io.series import SeriesWriter
 from pipeline.surface import reconstruct
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -139,14 +139,14 @@ def test_7_the_bridge_answers_bad_lines_and_failures_and_carries_on(tmp_path, mo
     assert (tmp_path / "o.vtp").is_file()
     # the same in the worker process the plugin keeps
     stdin = lines[0] + "\n" + json.dumps({**request, "target": str(tmp_path / "p.vtp")}) + "\n"
-    result = subprocess.run([sys.executable, "-m", "pipeline.bridge", "serve"], input=stdin,
+    result = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"], input=stdin,
                             capture_output=True, text=True, timeout=240, env=_env())
     assert result.returncode == 0 and "Traceback" not in result.stderr
     assert [json.loads(line)["ok"] for line in result.stdout.splitlines()] == [False, True]
 
 
 def write_good_particles(folder: Path) -> Path:
-    from pipeline.series import write_frame
+    from pipeline.io.series import write_frame
 
     x = (np.indices((5, 5, 5)).reshape(3, -1).T + 0.5) * 0.02
     return write_frame(pv.PolyData(x), folder / "good.vtp")
@@ -182,9 +182,9 @@ def _server(reply: bytes, trickle: float = 0.0):
 def test_8_a_scheduler_that_stalls_mid_handshake_is_refused_within_the_promise(tmp_path, capsys,
                                                                              monkeypatch):
     pytest.importorskip("dask.distributed")
-    import pipeline.frames
+    import pipeline.tasks
 
-    monkeypatch.setattr(pipeline.frames, "PROBE_TIMEOUT", 1.5)  # 5 s by default: a fast test
+    monkeypatch.setattr(pipeline.tasks, "PROBE_TIMEOUT", 1.5)  # 5 s by default: a fast test
     series = _cloud_series(tmp_path, [np.random.default_rng(1).uniform(0, 0.1, (30, 3))])
     frames = struct.pack("<QQQ", 2, 40, 40)  # two frames of 40 bytes announced, none sent
     replies = [struct.pack("<Q", 100) + b"\x01\x02",  # a part of the first block

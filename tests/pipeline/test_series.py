@@ -11,7 +11,7 @@ from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters import SimulationError
 from pipeline import Flow, SimulationSource, export_xdmf, read_series
-from pipeline.series import SeriesError, SeriesWriter, read_collection
+from pipeline.io.series import SeriesError, SeriesWriter, read_collection
 
 from _helpers import ballistic, failing_ballistic
 
