@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from . import cli_surface, cli_tools
 from .cli_common import (UsageError, add_cluster_options as _add_cluster_options,
@@ -20,6 +21,9 @@ from .cli_common import (UsageError, add_cluster_options as _add_cluster_options
                          client as _client, close_client as _close)
 from .folderlock import FolderLockedError, lock_folder
 from .outfiles import OwnershipError, atomic_path, frames_folder, remove_series
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
 
 __all__ = ["main"]
 
@@ -500,7 +504,7 @@ def _os_error(exc: OSError) -> str:
     return f"{exc.strerror or exc}{where}"
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``blobflow`` console script; returns the exit code.
 
     Every failure is one line on stderr: 2 for the user's input and the system's limits (an

@@ -28,6 +28,7 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm.auto import tqdm
 
@@ -37,6 +38,12 @@ from .folderlock import holds_folder
 from .outfiles import (atomic_path, frame_names, frames_folder, remove_frames,
                        sweep_temporaries)
 from .series import SeriesWriter, read_collection, read_frame, write_frame
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+    from typing import Any
+
+    from dask.distributed import Client
 
 __all__ = [
     "FrameFailure",
@@ -229,7 +236,7 @@ def _client_within(scheduler: str, timeout: float):
     return box["client"]
 
 
-def connect(scheduler: str | None = None, workers: int | None = None):
+def connect(scheduler: str | None = None, workers: int | None = None) -> Client:
     """A Dask client: to ``scheduler`` (``tcp://host:port``), or to a new ``LocalCluster``.
 
     Parameters
@@ -268,8 +275,9 @@ def connect(scheduler: str | None = None, workers: int | None = None):
     return Client(cluster)
 
 
-def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, desc: str = "frames",
-              total: int | None = None, initial: int = 0):
+def run_tasks(jobs: Sequence[tuple[int, float, tuple]], *, client: Client | None = None,
+              retries: int = 1, progress: bool = True, desc: str = "frames",
+              total: int | None = None, initial: int = 0) -> tuple[list[dict], list[FrameFailure]]:
     """Run ``_run_task(*args)`` for every ``(index, time, args)`` job, here or on ``client``.
 
     Returns
@@ -316,9 +324,10 @@ def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, des
 
 
 @holds_folder("output_path")  # one writer per folder (re-entrant: the CLI holds it too)
-def map_frames(input_path, output_path, task, options: dict | None = None, *, client=None,
-               resume: bool = False, progress: bool = True, retries: int = 1,
-               extension: str = ".vtp") -> FramesResult:
+def map_frames(input_path: str | Path, output_path: str | Path,
+               task: Callable[[str, str, float, dict], object], options: dict | None = None, *,
+               client: Client | None = None, resume: bool = False, progress: bool = True,
+               retries: int = 1, extension: str = ".vtp") -> FramesResult:
     """Run ``task`` on every frame of a series and write the results as a new series.
 
     Parameters
@@ -401,7 +410,7 @@ def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> No
     write_frame(copy, out_file)
 
 
-def provenance_path(output_path) -> Path:
+def provenance_path(output_path: str | Path) -> Path:
     """The file beside a series that records what its frames were computed from
     (``NAME.source.json``)."""
     output_path = Path(output_path)
@@ -444,7 +453,7 @@ def _provenance_change(old: dict, new: dict) -> str | None:
     return None
 
 
-def check_provenance(output_path, record: dict, resume: bool) -> None:
+def check_provenance(output_path: str | Path, record: dict, resume: bool) -> None:
     """On ``resume``, refuse to keep frames computed from another input or with other options;
     then record what this run computes from (``NAME.source.json``, atomically).
 
@@ -475,9 +484,9 @@ def check_provenance(output_path, record: dict, resume: bool) -> None:
 
 
 @holds_folder("output_path")
-def surface_series(particles_path, output_path, *, client=None, resume: bool = False,
-                   progress: bool = True, across_frames: int = 0,
-                   **surface_options) -> FramesResult:
+def surface_series(particles_path: str | Path, output_path: str | Path, *,
+                   client: Client | None = None, resume: bool = False, progress: bool = True,
+                   across_frames: int = 0, **surface_options: Any) -> FramesResult:
     """Reconstruct the surface of every frame of a particle series.
 
     ``surface_options`` are those of :func:`pipeline.surface.surface_stages` (``radius``,
