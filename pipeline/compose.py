@@ -7,6 +7,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
@@ -29,6 +30,14 @@ from .io.outfiles import sweep_temporaries
 from .io.series import SeriesWriter, read_frame
 from .io.xdmf import export_xdmf
 from .sources import SimulationSource
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterator
+
+    import numpy as np
+    from pyvista import DataSet
+
+    from filters.geometry import Shape
 
 __all__ = ["Flow", "Stage"]
 
@@ -90,7 +99,7 @@ class Flow:
         self.colliders: list[Collider] = []
 
     @property
-    def times(self):
+    def times(self) -> np.ndarray:
         """The frame times the flow runs over (s)."""
         return self.source.times
 
@@ -140,7 +149,8 @@ class Flow:
         self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf, draw)
         return algorithms[-1]
 
-    def add_collider(self, name: str, shape, role: str = "solid", *, size: float = 2.0) -> Collider:
+    def add_collider(self, name: str, shape: Shape, role: str = "solid", *,
+                     size: float = 2.0) -> Collider:
         """Declare a floor, container or solid collider of the scene, written as ``colliders.vtp``.
 
         :meth:`run` writes every declared collider beside the series
@@ -169,7 +179,7 @@ class Flow:
         self.colliders.append(collider)
         return collider
 
-    def output(self, name: str, time: float):
+    def output(self, name: str, time: float) -> DataSet:
         """Output ``name`` at ``time`` (s) as a PyVista dataset.
 
         Parameters
@@ -189,7 +199,7 @@ class Flow:
 
         return pv.wrap(self._output(name, time))
 
-    def frames(self, name: str):
+    def frames(self, name: str) -> Iterator[tuple[float, DataSet]]:
         """Yield ``(time, dataset)`` for every frame time of the flow (:meth:`output`)."""
         for t in self.times:
             yield float(t), self.output(name, float(t))
@@ -209,7 +219,7 @@ class Flow:
         """Names of the written outputs that the renders of a run draw."""
         return [s.name for s in self.stages.values() if s.write and s.draw]
 
-    def check_resume(self, directory) -> int:
+    def check_resume(self, directory: str | Path) -> int:
         """Check, without changing anything, that the series in ``directory`` can be resumed.
 
         Every written output's collection must list only frames this flow writes (its own
@@ -321,8 +331,8 @@ class Flow:
                          Checkpoint(state, index, float(self.times[index]), digests))
 
     @holds_folder("directory")  # one writer per folder (pipeline.io.folderlock)
-    def run(self, directory, *, resume: bool = False, progress: bool = True,
-            on_frame=None, checkpoint_every: int = 10,
+    def run(self, directory: str | Path, *, resume: bool = False, progress: bool = True,
+            on_frame: Callable[[int, float], object] | None = None, checkpoint_every: int = 10,
             checkpoint_seconds: float = 300.0) -> dict[str, Path]:
         """Run every frame and write each written output as a series in ``directory``.
 

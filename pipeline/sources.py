@@ -180,7 +180,7 @@ class SimulationSource(Algorithm):
         if sim.state.time < t:
             sim.advance_to(t)
 
-    def current_dataset(self):
+    def current_dataset(self) -> vtkDataObject:
         """The simulation's current frame as a VTK dataset, its particles in ``id`` order."""
         sim = self.simulation
         return frame_to_vtk(sim.frame(), sim.output_spec, self.dataset)

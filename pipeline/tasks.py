@@ -27,12 +27,18 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm.auto import tqdm
 
 from .io.folderlock import holds_folder
 from .io.outfiles import frames_folder, remove_frames, sweep_temporaries
 from .io.series import SeriesWriter, read_collection, read_frame
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
+    from dask.distributed import Client
 
 __all__ = [
     "FrameFailure",
@@ -222,7 +228,7 @@ def _client_within(scheduler: str, timeout: float):
     return box["client"]
 
 
-def connect(scheduler: str | None = None, workers: int | None = None):
+def connect(scheduler: str | None = None, workers: int | None = None) -> Client:
     """A Dask client: to ``scheduler`` (``tcp://host:port``), or to a new ``LocalCluster``.
 
     Parameters
@@ -261,8 +267,9 @@ def connect(scheduler: str | None = None, workers: int | None = None):
     return Client(cluster)
 
 
-def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, desc: str = "frames",
-              total: int | None = None, initial: int = 0):
+def run_tasks(jobs: Sequence[tuple[int, float, tuple]], *, client: Client | None = None,
+              retries: int = 1, progress: bool = True, desc: str = "frames",
+              total: int | None = None, initial: int = 0) -> tuple[list[dict], list[FrameFailure]]:
     """Run ``_run_task(*args)`` for every ``(index, time, args)`` job, here or on ``client``.
 
     Returns
@@ -309,9 +316,10 @@ def run_tasks(jobs, *, client=None, retries: int = 1, progress: bool = True, des
 
 
 @holds_folder("output_path")  # one writer per folder (re-entrant: the CLI holds it too)
-def map_frames(input_path, output_path, task, options: dict | None = None, *, client=None,
-               resume: bool = False, progress: bool = True, retries: int = 1,
-               extension: str = ".vtp") -> FramesResult:
+def map_frames(input_path: str | Path, output_path: str | Path,
+               task: Callable[[str, str, float, dict], object], options: dict | None = None, *,
+               client: Client | None = None, resume: bool = False, progress: bool = True,
+               retries: int = 1, extension: str = ".vtp") -> FramesResult:
     """Run ``task`` on every frame of a series and write the results as a new series.
 
     Parameters

@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..io.folderlock import FolderLockedError, lock_folder
 from ..io.outfiles import OwnershipError, atomic_path, frames_folder, remove_series
@@ -24,6 +25,9 @@ from .common import check_workers as _check_workers
 from .common import check_writable as _check_writable
 from .common import client as _client
 from .common import close_client as _close
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
 
 __all__ = ["main"]
 
@@ -514,7 +518,7 @@ def _os_error(exc: OSError) -> str:
     return f"{exc.strerror or exc}{where}"
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``blobflow`` console script; returns the exit code.
 
     Every failure is one line on stderr: 2 for the user's input and the system's limits (an

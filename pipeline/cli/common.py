@@ -7,6 +7,14 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from argparse import ArgumentParser, Namespace
+
+    from dask.distributed import Client
+
+    from ..tasks import FramesResult
 
 __all__ = ["UsageError", "add_cluster_options", "client", "close_client", "report_memory",
            "check_writable", "check_name_length", "check_workers", "max_workers", "cores",
@@ -17,7 +25,7 @@ class UsageError(Exception):
     """A mistake of the user's: reported as one line, exit code 2."""
 
 
-def add_cluster_options(parser) -> None:
+def add_cluster_options(parser: ArgumentParser) -> None:
     """``--workers N`` or ``--scheduler ADDRESS`` (frames on a Dask cluster), one of them."""
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--workers", type=int, metavar="N",
@@ -54,7 +62,7 @@ def max_workers() -> tuple[int, str]:
     return by_cores, f"this machine has {cores()} cores (at most two workers each)"
 
 
-def check_workers(args) -> None:
+def check_workers(args: Namespace) -> None:
     """Refuse ``--workers`` below 1 or above :func:`max_workers`, with the limit and why."""
     if args.workers is None:
         return
@@ -65,7 +73,7 @@ def check_workers(args) -> None:
         raise UsageError(f"--workers {args.workers} is more than {limit}: {why}")
 
 
-def client(args):
+def client(args: Namespace) -> Client | None:
     """The Dask client the options ask for, or None (serial); one-line errors."""
     if args.workers is None and args.scheduler is None:
         return None
@@ -78,7 +86,7 @@ def client(args):
         raise UsageError(str(exc)) from None
 
 
-def close_client(client) -> None:
+def close_client(client: Client | None) -> None:
     """Close a client of :func:`client` and the local cluster it started, if any."""
     if client is not None:
         cluster = getattr(client, "cluster", None)
@@ -87,7 +95,7 @@ def close_client(client) -> None:
             cluster.close()
 
 
-def report_memory(result) -> None:
+def report_memory(result: FramesResult) -> None:
     """Print the largest peak memory of the workers of a :class:`pipeline.tasks.FramesResult`."""
     if result.peak_memory:
         worst = max(result.peak_memory.values()) / 2**20

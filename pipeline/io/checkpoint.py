@@ -76,7 +76,7 @@ class Checkpoint:
     digests: dict = field(default_factory=dict)
 
 
-def checkpoint_path(series) -> Path:
+def checkpoint_path(series: str | Path) -> Path:
     """The checkpoint file beside a series: ``DIR/NAME.pvd`` (or ``DIR/NAME.vtp.series``) ->
     ``DIR/NAME.checkpoint.npz``."""
     series = Path(series)
@@ -84,7 +84,7 @@ def checkpoint_path(series) -> Path:
     return series.with_name(name + CHECKPOINT_SUFFIX)
 
 
-def file_digest(path) -> bytes:
+def file_digest(path: str | Path) -> bytes:
     """SHA-256 of a file's bytes (32 bytes)."""
     digest = hashlib.sha256()
     with open(path, "rb") as f:
@@ -93,7 +93,7 @@ def file_digest(path) -> bytes:
     return digest.digest()
 
 
-def write_checkpoint(path, checkpoint: Checkpoint) -> Path:
+def write_checkpoint(path: str | Path, checkpoint: Checkpoint) -> Path:
     """Write ``checkpoint`` to ``path`` atomically (temporary file, fsync, rename).
 
     Parameters
@@ -150,7 +150,7 @@ def _scalar(arrays: dict, name: str, kind: str):
     return value[0]
 
 
-def read_checkpoint(path) -> Checkpoint:
+def read_checkpoint(path: str | Path) -> Checkpoint:
     """Read a checkpoint written by :func:`write_checkpoint`, refusing anything else.
 
     Raises

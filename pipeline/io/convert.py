@@ -15,6 +15,8 @@ those runs can still be resumed.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkPoints
@@ -27,6 +29,9 @@ from vtkmodules.vtkCommonDataModel import (
 )
 
 from filters.simulation import Frame, OutputSpec, State
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "frame_to_vtk",
@@ -96,7 +101,7 @@ def _check_frame(frame: Frame, spec: OutputSpec) -> None:
                          f"lists")
 
 
-def id_order(ids) -> np.ndarray | None:
+def id_order(ids: ArrayLike) -> np.ndarray | None:
     """The permutation that puts particles in increasing ``id`` order, or ``None`` if they are.
 
     Parameters
@@ -161,7 +166,8 @@ def _in_id_order(frame: Frame, vertices: bool) -> Frame:
                  field_data=frame.field_data)
 
 
-def frame_to_vtk(frame: Frame, spec: OutputSpec, dataset: str | None = None):
+def frame_to_vtk(frame: Frame, spec: OutputSpec,
+                 dataset: str | None = None) -> vtkPolyData | vtkUnstructuredGrid:
     """Build a VTK dataset from a :class:`filters.Frame`.
 
     Parameters

@@ -26,6 +26,11 @@ import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterator
+    from typing import Any
 
 __all__ = ["LOCK_NAME", "FolderLockedError", "lock_folder", "holds_folder", "lock_owner"]
 
@@ -40,7 +45,7 @@ class FolderLockedError(RuntimeError):
     """Another process writes the folder (the message names it)."""
 
 
-def lock_owner(folder) -> dict | None:
+def lock_owner(folder: str | Path) -> dict | None:
     """What the lock file of ``folder`` says about its holder (``pid``, ``host``, ``command``,
     ``since``), or None when there is none or it cannot be read."""
     try:
@@ -114,7 +119,7 @@ def _release(folder: Path, fd: int) -> None:
 
 
 @contextmanager
-def lock_folder(folder):
+def lock_folder(folder: str | Path) -> Iterator[Path]:
     """Hold the lock of ``folder`` (created if missing) while the block runs.
 
     Folders created for the lock are removed again when the block leaves them empty (a
@@ -164,7 +169,7 @@ def _remove_empty(folders) -> None:
             return
 
 
-def holds_folder(argument: str):
+def holds_folder(argument: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Decorator: hold the lock of the folder given as ``argument`` while the function runs
     (for a ``.pvd`` path, the folder that holds it)."""
     def decorate(function):

@@ -26,6 +26,10 @@ import secrets
 import socket
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Iterator
 
 __all__ = ["OwnershipError", "FRAME_SUFFIXES", "is_frame_name", "frame_names",
            "frames_folder", "remove_frames", "remove_series", "series_files",
@@ -62,7 +66,7 @@ def frame_names(folder: Path, name: str) -> list[Path]:
                   if is_frame_name(p.name, name) and (p.is_symlink() or p.is_file()))
 
 
-def frames_folder(directory, name: str, *, create: bool = False) -> Path:
+def frames_folder(directory: str | Path, name: str, *, create: bool = False) -> Path:
     """The frames folder ``directory/name`` of a series, checked to be blobflow's to use.
 
     Raises
@@ -89,7 +93,7 @@ def frames_folder(directory, name: str, *, create: bool = False) -> Path:
     return folder
 
 
-def remove_frames(folder, name: str, keep=()) -> int:
+def remove_frames(folder: str | Path, name: str, keep: Iterable[str] = ()) -> int:
     """Remove the frames of series ``name`` from ``folder`` except the file names in ``keep``.
 
     Only names matching :func:`is_frame_name` are touched. Returns how many were removed.
@@ -103,7 +107,7 @@ def remove_frames(folder, name: str, keep=()) -> int:
     return removed
 
 
-def series_files(directory, name: str) -> list[Path]:
+def series_files(directory: str | Path, name: str) -> list[Path]:
     """The files of series ``name`` directly in ``directory`` (collections, XDMF) that exist."""
     directory = Path(directory)
     names = [f"{name}.pvd", f"{name}.xdmf", f"{name}.h5", f"{name}.source.json",
@@ -113,7 +117,7 @@ def series_files(directory, name: str) -> list[Path]:
             or (directory / n).is_symlink()]
 
 
-def remove_series(directory, name: str) -> None:
+def remove_series(directory: str | Path, name: str) -> None:
     """Remove series ``name`` from ``directory``: its collection files, its frames, and its
     frames folder when nothing else is left in it (other files there are kept)."""
     directory = Path(directory)
@@ -129,7 +133,7 @@ def remove_series(directory, name: str) -> None:
             pass
 
 
-def temporary_path(path) -> Path:
+def temporary_path(path: str | Path) -> Path:
     """A temporary name beside ``path``, unique to this process and call:
     ``.NAME.HOST-PID-TOKEN.tmp.SUFFIX`` (the suffix kept, so writers that choose a format by it
     still do)."""
@@ -144,7 +148,7 @@ def is_temporary_name(file_name: str) -> bool:
 
 
 @contextmanager
-def atomic_path(path):
+def atomic_path(path: str | Path) -> Iterator[Path]:
     """Write ``path`` atomically: yields a temporary path to write, renamed to ``path`` when
     the block ends normally and removed when it raises (an error, Ctrl-C, a termination)."""
     path = Path(path)
@@ -167,7 +171,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def sweep_temporaries(folder) -> int:
+def sweep_temporaries(folder: str | Path) -> int:
     """Remove the temporary files (:func:`temporary_path`) in ``folder`` whose process no
     no longer runs on this machine (a run killed with ``kill -9``); returns how many were
     removed."""

@@ -21,6 +21,7 @@ import math
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -39,6 +40,12 @@ from filters.memory import format_bytes, memory_limit
 from ..algorithm import vtk_messages
 from .outfiles import atomic_path, frames_folder, remove_frames, sweep_temporaries
 from .xmlcheck import UnsafeFileError, check_vtk_xml
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable
+
+    from numpy.typing import NDArray
+    from pyvista import DataSet
 
 __all__ = [
     "SeriesWriter",
@@ -107,7 +114,7 @@ def frame_extension(data: vtkDataObject) -> str:
     return _WRITERS[cls][0]
 
 
-def write_frame(data: vtkDataObject, path) -> Path:
+def write_frame(data: vtkDataObject, path: str | Path) -> Path:
     """Write one dataset as a VTK XML file, atomically (temporary file, then rename).
 
     Appended raw data, zlib compression, UInt64 headers; refuses non-finite values.
@@ -154,7 +161,7 @@ class SeriesWriter:
         Time and relative file name of every frame written so far.
     """
 
-    def __init__(self, path, *, resume: bool = False):
+    def __init__(self, path: str | Path, *, resume: bool = False):
         self.path = Path(path)
         if self.path.suffix != ".pvd":
             raise ValueError(f"a series path must end in .pvd, got {str(self.path)!r}")
@@ -253,7 +260,7 @@ class SeriesWriter:
         return final
 
     @classmethod
-    def from_files(cls, path, entries) -> SeriesWriter:
+    def from_files(cls, path: str | Path, entries: Iterable[tuple[float, str]]) -> SeriesWriter:
         """Write the collection files for frames already on disk and return the writer.
 
         Parameters
@@ -295,7 +302,7 @@ class SeriesWriter:
                                json.dumps(series, indent=1) + "\n")
 
 
-def read_collection(path) -> list[tuple[float, str]]:
+def read_collection(path: str | Path) -> list[tuple[float, str]]:
     """Times and relative file names listed by a ``.pvd`` or ``.series`` file.
 
     Raises
@@ -343,7 +350,8 @@ def read_collection(path) -> list[tuple[float, str]]:
     return entries
 
 
-def validate_series(path, on_frame=None) -> list[tuple[float, str]]:
+def validate_series(path: str | Path, on_frame: Callable[[int, vtkDataObject], object] | None = None
+                    ) -> list[tuple[float, str]]:
     """Read a collection and every frame it lists; raise :class:`SeriesError` naming the first
     missing, truncated or corrupt one.  Returns the entries of :func:`read_collection`.
 
@@ -358,7 +366,7 @@ def validate_series(path, on_frame=None) -> list[tuple[float, str]]:
     return entries
 
 
-def read_frame(path) -> vtkDataObject:
+def read_frame(path: str | Path) -> vtkDataObject:
     """Read one VTK XML file (``.vtp``, ``.vtu``, ``.vti``) with VTK's own reader."""
     path = Path(path)
     reader_class = _READERS.get(path.suffix)
@@ -410,7 +418,7 @@ def _check_frame_complete(reader, data, path) -> None:
                     f"{array.GetNumberOfTuples()} values for {count} {label}s")
 
 
-def read_series(path):
+def read_series(path: str | Path) -> tuple[NDArray[np.float64], list[DataSet]]:
     """Read a whole series.
 
     Parameters

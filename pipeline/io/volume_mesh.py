@@ -5,8 +5,12 @@ through meshio, for a finite-element solid simulated as it is
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["read_volume_mesh", "VOLUME_CELL_TYPES"]
 
@@ -19,7 +23,8 @@ VOLUME_CELL_TYPES = ("tetra", "tetra10", "hexahedron", "hexahedron20", "hexahedr
 VOLUME_ONLY_SUFFIXES = (".msh", ".mesh", ".meshb", ".inp", ".med", ".xdmf", ".xmf", ".h5m")
 
 
-def read_volume_mesh(path, name: str = "mesh"):
+def read_volume_mesh(path: str | Path,
+                     name: str = "mesh") -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
     """The linear tetrahedra of a volume mesh file, or None when it holds no volume cells.
 
     Parameters

@@ -542,7 +542,7 @@ def _lz4_block(data: bytes, limit: int) -> bytes:
     return bytes(out)
 
 
-def check_vtk_xml(path, *, budget: int | None = None) -> None:
+def check_vtk_xml(path: str | Path, *, budget: int | None = None) -> None:
     """Refuse a VTK XML file whose declared sizes its data cannot back, before VTK reads it.
 
     Parameters

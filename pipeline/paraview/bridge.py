@@ -29,6 +29,11 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from typing import TextIO
 
 __all__ = ["describe", "serve", "main", "MAX_REQUEST"]
 
@@ -159,7 +164,7 @@ def _request_answer(line: str) -> dict:
         sys.stdout = previous
 
 
-def serve(stdin=None, stdout=None) -> None:
+def serve(stdin: TextIO | None = None, stdout: TextIO | None = None) -> None:
     """Answer JSON-line requests from ``stdin`` on ``stdout`` until ``stdin`` closes.
 
     Every line gets one answer line, whatever it holds: malformed or too deeply nested JSON,
@@ -181,7 +186,7 @@ def serve(stdin=None, stdout=None) -> None:
         stdout.flush()
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """``python -m pipeline.paraview.bridge COMMAND ...``; returns the exit code."""
     from filters.simulation import SimulationError
 

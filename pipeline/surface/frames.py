@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from filters.validation import check_int
 
@@ -21,6 +22,9 @@ from ..tasks import FramesResult, map_frames
 from .across_frames import smooth_series_across_frames
 from .stages import surface_stages
 
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
 __all__ = ["surface_series", "surface_frame", "check_provenance", "provenance_path"]
 
 
@@ -32,7 +36,7 @@ def surface_frame(in_file: str, out_file: str, time: float, options: dict) -> No
     write_frame(copy, out_file)
 
 
-def provenance_path(output_path) -> Path:
+def provenance_path(output_path: str | Path) -> Path:
     """The file beside a series that records what its frames were computed from
     (``NAME.source.json``)."""
     output_path = Path(output_path)
@@ -75,7 +79,7 @@ def _provenance_change(old: dict, new: dict) -> str | None:
     return None
 
 
-def check_provenance(output_path, record: dict, resume: bool) -> None:
+def check_provenance(output_path: str | Path, record: dict, resume: bool) -> None:
     """On ``resume``, refuse to keep frames computed from another input or with other options;
     then record what this run computes from (``NAME.source.json``, atomically).
 
@@ -106,9 +110,10 @@ def check_provenance(output_path, record: dict, resume: bool) -> None:
 
 
 @holds_folder("output_path")
-def surface_series(particles_path, output_path, *, client=None, resume: bool = False,
+def surface_series(particles_path: str | Path, output_path: str | Path, *,
+                   client: Client | None = None, resume: bool = False,
                    progress: bool = True, across_frames: int = 0,
-                   **surface_options) -> FramesResult:
+                   **surface_options: Any) -> FramesResult:
     """Reconstruct the surface of every frame of a particle series.
 
     ``surface_options`` are those of :func:`pipeline.surface.surface_stages` (``radius``,
