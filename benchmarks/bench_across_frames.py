@@ -18,7 +18,7 @@ ways, side by side in one run:
   ``main``), loaded from that revision's ``filters/surface/temporal.py``, on the same frames in
   the same rounds; its results are compared with today's bit for bit (vertices and normals,
   every frame);
-* ``pipeline``: :func:`pipeline.across_frames.smooth_series_across_frames`'s filtering pass
+* ``pipeline``: :func:`pipeline.surface.across_frames.smooth_series_across_frames`'s filtering pass
   on the run's files (reads, filter, writes; the first pass's single-frame surfaces are the
   run's own), seconds a frame, beside the same pass of the baseline revision
   (``pipeline/across_frames.py`` on its filter), whose files must be identical.
@@ -70,8 +70,8 @@ def load_frames(run: Path):
     from vtkmodules.util import numpy_support
     from vtkmodules.vtkCommonDataModel import vtkPointSet, vtkPolyData
 
-    from pipeline.contour import polydata_to_mesh
-    from pipeline.series import read_collection, read_frame
+    from pipeline.io.series import read_collection, read_frame
+    from pipeline.surface.contour import polydata_to_mesh
 
     record = json.loads((run / "scene.json").read_text())
     prm = record["parameters"]
@@ -113,19 +113,25 @@ def _module_of(revision: str, path: str, name: str, folder: Path, package: str, 
 
 def baseline_modules(revision: str, folder: Path):
     """The across-frames filter (``filters/surface/temporal.py``) and pass
-    (``pipeline/across_frames.py``, on that filter) as of ``revision``, running on today's
+    (``pipeline/surface/across_frames.py``, on that filter) as of ``revision``, running on today's
     helpers (binning, attributes, series)."""
     temporal = _module_of(revision, "filters/surface/temporal.py", "temporal_baseline", folder,
                           "filters.surface")
-    passes = _module_of(revision, "pipeline/across_frames.py", "across_frames_baseline", folder,
-                        "pipeline", replace=[("from filters.surface.temporal import",
-                                                "from temporal_baseline import")])
+    # pipeline/surface/across_frames.py since pipeline/ was organised by purpose; the flat
+    # pipeline/across_frames.py before (its old imports resolve through pipeline's aliases)
+    listed = _git("ls-tree", "-r", "--name-only", revision, "pipeline").split()
+    path, package = (("pipeline/surface/across_frames.py", "pipeline.surface")
+                     if "pipeline/surface/across_frames.py" in listed
+                     else ("pipeline/across_frames.py", "pipeline"))
+    passes = _module_of(revision, path, "across_frames_baseline", folder, package,
+                        replace=[("from filters.surface.temporal import",
+                                  "from temporal_baseline import")])
     return temporal, passes
 
 
 def neighbours_of(k, particles, surfaces, grids=None):
     """The (rows, positions, surface...) entries and weights of frame ``k``'s neighbours."""
-    from pipeline.across_frames import weights_across
+    from pipeline.surface.across_frames import weights_across
 
     w = weights_across(K)
     rows = np.arange(particles.shape[1])
@@ -143,10 +149,10 @@ def pipeline_pass(run: Path, particles, radius, tank, work: Path, across_frames=
     """Seconds a frame of the pipeline's filtering pass on the run's files (``across_frames``:
     the module that makes it, today's by default); the series in ``work/smoothed.pvd``."""
     from filters.geometry import Box
-    from pipeline.series import read_collection
+    from pipeline.io.series import read_collection
 
     if across_frames is None:
-        from pipeline import across_frames
+        from pipeline.surface import across_frames
 
     def single(source, target, **kwargs):  # the first pass: the run's own surfaces
         folder = Path(target).parent / Path(target).stem

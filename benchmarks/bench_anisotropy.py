@@ -28,10 +28,10 @@ layer, where the lattice's cells end; for the SPH pool it follows the settled pa
 than the initial volume (the weakly compressible solver leaves the column 0.2 spacings lower
 than ``N s^3 / A``, and its layers closer than s near the top).
 
-Methods: ``isotropic`` (``filters.surface.splat.splat_sparse`` + ``contour_sparse``), ``isotropic+smooth``
-(the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100 iterations, pass band
-0.001), ``anisotropic`` (``filters.surface.splat.splat_sparse_anisotropic`` defaults +
-``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
+Methods: ``isotropic`` (``filters.surface.splat.splat_sparse`` + ``contour_sparse``),
+``isotropic+smooth`` (the same + ``pipeline.surface.Smooth`` defaults: windowed sinc, 100
+iterations, pass band 0.001), ``anisotropic`` (``filters.surface.splat.splat_sparse_anisotropic``
+defaults + ``contour_sparse``), ``anisotropic+smooth`` (the same + ``Smooth`` defaults),
 ``isotropic+feature`` / ``anisotropic+feature`` (+ 25 sweeps of feature-weighted Laplacian
 smoothing, :func:`filters.surface.smoothing.smooth_surface`, the ``MarchingCubes`` option),
 ``splashsurf_raw`` (``pysplashsurf.reconstruct_surface``, smoothing length 2 r, cube 0.5 r, iso
@@ -107,13 +107,13 @@ def ball(radius, jitter=0.05, seed=0):
 
 
 def _contour(grid):
-    from pipeline.contour import contour_sparse
+    from pipeline.surface.contour import contour_sparse
 
     return contour_sparse(grid)
 
 
 def _smooth(points, tris):
-    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
     from pipeline.surface import Smooth
 
     s = Smooth()
@@ -279,16 +279,16 @@ def sph_pool(seconds=1.5, shape=(20, 20, 8)):
 
 
 def scene_surface(x, tank_lo, tank_hi, anisotropic):
-    """The surface the liquid scenes build (:func:`pipeline.surface_options.
+    """The surface the liquid scenes build (:func:`pipeline.surface.options.
     liquid_surface_options`: ghosts across the tank's walls and the surface cut at them,
     feature smoothing, ``Smooth(30, 0.01)``, the volume correction), without normals and
     attributes."""
     import pyvista as pv
 
     from pipeline.algorithm import run_chain
-    from pipeline.contour import polydata_to_mesh
+    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import surface_stages
-    from pipeline.surface_options import liquid_surface_options
+    from pipeline.surface.options import liquid_surface_options
 
     options = liquid_surface_options(2 * R, tank_lo, tank_hi, anisotropic=anisotropic,
                                      normals=False, attributes=())
@@ -481,7 +481,7 @@ def render(meshes, pool, path):
     """The top of the lattice pool with four methods side by side (offscreen)."""
     import pyvista as pv
 
-    import pipeline.render  # noqa: F401 - chooses EGL / OSMesa without trying an X server
+    import pipeline.render.renderer  # noqa: F401 - chooses EGL / OSMesa without trying an X server
 
     pv.OFF_SCREEN = True
     names = ("isotropic", "anisotropic", "anisotropic+feature", "splashsurf_smoothed")

@@ -97,7 +97,8 @@ def main(argv=None) -> int:
                 case["key"] = key
                 cases[key] = case
                 print(f"front mean |error| {100 * case['front_mean_abs']:.1f} % (signed "
-                      f"{100 * case['front_mean']:+.1f} %), height {100 * case['height_mean_abs']:.1f}"
+                      f"{100 * case['front_mean']:+.1f} %), height "
+                      f"{100 * case['height_mean_abs']:.1f}"
                       f" % ({100 * case['height_mean']:+.1f} %); {case['particles']} particles, "
                       f"{case['steps']} steps, {case['wall_s']} s, "
                       f"{case['container_corrections']} container corrections", flush=True)

@@ -14,10 +14,11 @@ Run (under the project's benchmark lock when the machine is free)::
    also the corotated material), against the spring jello (:class:`filters.elastic.
    mass_spring.JelloSimulation`, stiffness 300 N, damping 0.5 N s/m)
    on the *same lattice* (the spring lattice and the tetrahedra share the voxelisation; the
-   tetrahedra also fill the cells the surface cuts, each with its volume fraction), steps interleaved between the models.  Reported per model: ms per step
-   (median, min), Newton and PCG iterations and direct solves per step, the share of steps
-   at the Newton limit; :data:`BEFORE` keeps the numbers of the run before Newton converged
-   in contact (diagonal contact Hessian of the embedded surface, slip velocity 1 mm/s).
+   tetrahedra also fill the cells the surface cuts, each with its volume fraction), steps
+   interleaved between the models.  Reported per model: ms per step (median, min), Newton and PCG
+   iterations and direct solves per step, the share of steps at the Newton limit; :data:`BEFORE`
+   keeps the numbers of the run before Newton converged in contact (diagonal contact Hessian of the
+   embedded surface, slip velocity 1 mm/s).
 2. **Contouring**: the 100k and 1M jittered blocks of ``bench_surface.py`` splatted once
    (``splat_sparse``, sph kernel, radius 0.01 m, cell 0.005 m, iso 0.6), then contoured with
    flying edges (``contour_sparse``) and with marching tetrahedra (``contour_grid``),
@@ -153,7 +154,7 @@ def contouring(case, repeats):
     from filters.surface.mesh import mesh_stats
     from filters.surface.splat import splat_sparse
     from filters.surface.tetra import contour_grid
-    from pipeline.contour import contour_sparse
+    from pipeline.surface.contour import contour_sparse
 
     n = {"block_100k": (50, 50, 40), "block_1m": (100, 100, 100)}[case]
     x = _block(n)

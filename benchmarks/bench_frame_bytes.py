@@ -3,8 +3,8 @@ simulation's state in every frame.
 
 Each scene runs at its default size (no surface) through ``Flow.run``; after every frame the same
 frame is also written with the state attached as ``state:*`` field data, as blobflow wrote
-frames before the checkpoint moved beside the series (:mod:`pipeline.checkpoint`).  Both files
-are written by :func:`pipeline.series.write_frame` (raw appended, zlib level 1).  The checkpoint
+frames before the checkpoint moved beside the series (:mod:`pipeline.io.checkpoint`).  Both files
+are written by :func:`pipeline.io.series.write_frame` (raw appended, zlib level 1).  The checkpoint
 file's size is recorded too (one file per run, not per frame).
 
 Usage::
@@ -25,9 +25,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pipeline.convert import state_to_field_data  # noqa: E402
+from pipeline.io.convert import state_to_field_data  # noqa: E402
 from pipeline.scene import load_scene  # noqa: E402
-from pipeline.series import read_frame, write_frame  # noqa: E402
+from pipeline.io.series import read_frame, write_frame  # noqa: E402
 
 
 def measure(scene: str, frames: int, folder: Path) -> dict:

@@ -52,7 +52,7 @@ def _written_to(folder: Path, spacing: float) -> float | None:
     params = json.loads(record.read_text())["parameters"]
     if params.get("spacing") != spacing or params.get("surface"):
         return None
-    from pipeline.series import read_collection
+    from pipeline.io.series import read_collection
 
     entries = read_collection(pvd)
     return entries[-1][0] if entries else None
@@ -67,7 +67,7 @@ def _complete(folder: Path, spacing: float, duration: float) -> bool:
 def analyse(folder: Path) -> list[dict]:
     """Per frame: time, particle count, the container corrections so far (the safety net),
     mean and worst compression, largest speed."""
-    from pipeline.series import read_collection, read_frame
+    from pipeline.io.series import read_collection, read_frame
     from vtkmodules.util import numpy_support
 
     rows = []

@@ -4,7 +4,7 @@ For each offscreen OpenGL that VTK can use here (EGL and OSMesa, both Mesa's llv
 CPU) and each way of darkening what is hidden from the light:
 
 * ``none``: no shadows;
-* ``shadow_map``: the renderer's passes (:func:`pipeline.actors.shadow_passes`): bake the key
+* ``shadow_map``: the renderer's passes (:func:`pipeline.render.actors.shadow_passes`): bake the key
   light's shadow map, draw the opaque geometry once with shadows;
 * ``shadow_map_pyvista``: PyVista's ``enable_shadows`` (the same two passes after a full opaque
   render, which it keeps);
@@ -42,7 +42,7 @@ METHODS = ("none", "shadow_map", "shadow_map_pyvista", "ssao")
 
 
 def _configure(renderer, method: str) -> None:
-    """Switch a shadowed :class:`pipeline.renderer.Renderer` to ``method``."""
+    """Switch a shadowed :class:`pipeline.render.renderer.Renderer` to ``method``."""
     if method == "shadow_map":
         return
     renderer._scene.SetPass(None)
@@ -52,7 +52,7 @@ def _configure(renderer, method: str) -> None:
     if method == "shadow_map_pyvista":
         renderer.plotter.enable_shadows()
         baker = renderer.plotter.renderer._render_passes._shadow_map_pass.GetShadowMapBakerPass()
-        from pipeline import looks
+        from pipeline.render import looks
 
         baker.SetResolution(looks.SHADOW_MAP_RESOLUTION)
         baker.SetExponentialConstant(looks.SHADOW_EXPONENT)
@@ -65,8 +65,8 @@ def _ball_scene(folder: Path) -> Path:
     import pyvista as pv
 
     from filters.geometry import Plane
-    from pipeline.colliders import COLLIDERS_FILE, Collider, write_colliders
-    from pipeline.series import SeriesWriter
+    from pipeline.io.colliders import COLLIDERS_FILE, Collider, write_colliders
+    from pipeline.io.series import SeriesWriter
 
     ball = pv.Sphere(radius=0.1, center=(0.0, 0.0, 0.1), theta_resolution=48, phi_resolution=48)
     writer = SeriesWriter(folder / "jello.pvd")
@@ -86,7 +86,10 @@ def _contrast(renderer, image) -> float:
     key = np.array(renderer._key.position)
     away = math.atan2(-key[1], -key[0])
     angles = away + np.radians(np.arange(-30, 31, 10))
-    ring = lambda d: renderer.pixels_of([[d * math.cos(a), d * math.sin(a), 0.0] for a in angles])
+
+    def ring(d):
+        return renderer.pixels_of([[d * math.cos(a), d * math.sin(a), 0.0] for a in angles])
+
     lum = image.astype(float).mean(axis=-1)
 
     def floor_mean(pixels):
@@ -102,10 +105,10 @@ def _contrast(renderer, image) -> float:
 
 def measure(method: str, run: Path, frames: int, supersample: float) -> dict:
     """In this process: CPU s per frame of ``run``'s surface and the ball's contrast."""
-    import pipeline.renderer as renderer_module
+    import pipeline.render.renderer as renderer_module
 
     renderer_module.SUPERSAMPLE = supersample
-    from pipeline.renderer import Renderer
+    from pipeline.render.renderer import Renderer
 
     with tempfile.TemporaryDirectory() as tmp:
         with Renderer(_ball_scene(Path(tmp)), size=(240, 180), text=False,

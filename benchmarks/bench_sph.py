@@ -561,11 +561,17 @@ def summarise(r):
 
 def table(r):
     s = r.get("summary", {})
-    fmt = lambda v, f="{:.3g}": "n/a" if v is None else f.format(v)
-    pct = lambda v: "n/a" if v is None else f"{100 * v:.2f} %"
+
+    def fmt(v, f="{:.3g}"):
+        return "n/a" if v is None else f.format(v)
+
+    def pct(v):
+        return "n/a" if v is None else f"{100 * v:.2f} %"
+
     rows = ["| wall s per simulated s, dam break, 1 thread | particles | blobflow DFSPH | "
             "SPlisHSPlasH DFSPH | blobflow WCSPH | SPlisHSPlasH WCSPH | DFSPH speed-up vs "
-            "SPlisHSPlasH DFSPH (>= 1.5) / vs blobflow WCSPH (>= 3) |", "|---|---|---|---|---|---|---|"]
+            "SPlisHSPlasH DFSPH (>= 1.5) / vs blobflow WCSPH (>= 3) |",
+            "|---|---|---|---|---|---|---|"]
     for size in SIZES:
         cells = []
         for code, solver in (("blobflow", "dfsph"), ("splishsplash", "dfsph"),

@@ -1,6 +1,7 @@
-"""Liquid surfaces in motion: drops keep their volume, pools keep their water, frames do not flicker.
+"""Liquid surfaces in motion: drops keep their volume, pools keep their water, frames do not
+flicker.
 
-blobflow's scene surface (``scenes/liquid_surface.py``: :func:`pipeline.surface_options.
+blobflow's scene surface (``scenes/liquid_surface.py``: :func:`pipeline.surface.options.
 liquid_surface_options`, i.e. anisotropic kernels, ghosts across the tank walls, feature and
 windowed-sinc smoothing, volume correction, the tank intersected) side by side with
 pysplashsurf's smoothed surface (``reconstruction_pipeline``: particle radius = spacing / 2,
@@ -20,11 +21,12 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   surface's vertices (2 s from the walls) to the previous frame's surface, spacings per frame;
   beside it, how far the top layer's particles move (RMS of their vertical displacement).
 * ``temporal_motion``: the frames of the ``drop`` scene at its defaults (1.5 s, 30 fps, 12 mm
-  spacing, 2,500 particles) and at 6 mm (20,000 particles, a crown and drops): each frame's vertices moved by the particles' own displacement to the next frame
-  (interpolated at the vertex with Shepard weights of the SPH kernel, support 2 s), then their
-  distance to the next frame's surface: the surface motion the liquid's motion does not
-  explain. RMS over the vertices more than one spacing from the tank walls (pysplashsurf does
-  not clip at the walls), the same with distances capped at one spacing (a drop forming or
+  spacing, 2,500 particles) and at 6 mm (20,000 particles, a crown and drops): each frame's vertices
+  moved by the particles' own displacement to the next frame (interpolated at the vertex with
+  Shepard weights of the SPH kernel, support 2 s), then their distance to the next frame's surface:
+  the surface motion the liquid's motion does not explain. RMS over the vertices more than one
+  spacing from the tank walls (pysplashsurf does not clip at the walls), the same with distances
+  capped at one spacing (a drop forming or
   merging moves the surface by more), and the fraction above half a spacing. Two more views
   of the same signed distances: ``beyond_uniform_offset``, the RMS once each piece's mean
   (a uniform offset of a closed piece: the volume it gains or loses) is removed, and
@@ -41,10 +43,10 @@ smoothing length 2 r, cube 0.5 r, iso 0.6, 25 weighted smoothing iterations, Lö
   surface's volume error against ``N s^3`` per frame is written beside its motion.
 * ``thin_features``: jittered single and double particle layers (16 x 16 particles, in-plane
   spacing 1.0-1.8 s, layers s apart): components, cavities (closed bubbles inside) and holes
-  (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every
-  ``drop`` frame the components, cavities and holes of both surfaces against the particle clusters (particles linked by chains of
-  neighbours within the kernel support, 2 s: the pieces the liquid forms where particles are
-  within the kernel support of each other).
+  (``(2 c - chi) / 2`` for ``c`` components of Euler characteristic ``chi``); and on every ``drop``
+  frame the components, cavities and holes of both surfaces against the particle clusters (particles
+  linked by chains of neighbours within the kernel support, 2 s: the pieces the liquid forms where
+  particles are within the kernel support of each other).
 
 Run alone (the machine has 2 cores)::
 
@@ -98,9 +100,9 @@ def scene_surface(x, spacing, tank=None, **options):
     import pyvista as pv
 
     from pipeline.algorithm import run_chain
-    from pipeline.contour import polydata_to_mesh
+    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import surface_stages
-    from pipeline.surface_options import liquid_surface_options
+    from pipeline.surface.options import liquid_surface_options
 
     lo, hi = tank if tank is not None else (None, None)
     opts = liquid_surface_options(spacing, lo, hi, normals=False, attributes=(), **options)
@@ -129,14 +131,14 @@ def splashsurf_surface(x, spacing):
 def splashsurf_at_the_scenes_volume(x, spacing, tank, mesh):
     """pysplashsurf's surface ``mesh`` (points, triangles) held at the volume the scenes' surface
     keeps: cut at the tank's walls and every closed piece offset to enclose its particles'
-    ``N s^3`` by the scenes' own stages (:class:`pipeline.liquid.ClipBox`,
-    :class:`pipeline.liquid.VolumeCorrection`, same cell and limits): the peer at the same
+    ``N s^3`` by the scenes' own stages (:class:`pipeline.surface.liquid.ClipBox`,
+    :class:`pipeline.surface.liquid.VolumeCorrection`, same cell and limits): the peer at the same
     volume accuracy; (points, triangles)."""
     import pyvista as pv
 
     from pipeline.algorithm import update
-    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
-    from pipeline.liquid import ClipBox, VolumeCorrection
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface.liquid import ClipBox, VolumeCorrection
 
     points, tris = mesh
     box = Box(*tank)
@@ -178,7 +180,7 @@ def signed_distances(points, mesh):
     from vtkmodules.vtkFiltersCore import vtkImplicitPolyDataDistance
     from vtkmodules.vtkFiltersGeneral import vtkSampleImplicitFunctionFilter
 
-    from pipeline.contour import mesh_to_polydata
+    from pipeline.surface.contour import mesh_to_polydata
 
     if len(points) == 0:
         return np.zeros(0)
@@ -247,7 +249,7 @@ def scene_frames(scene, *settings):
     """Times, positions (F, N, 3, in the order of the particles' ids) and the parameters of a
     scene run at its defaults but ``settings`` (``NAME=VALUE``), without its surface."""
     from pipeline.cli import main
-    from pipeline.series import read_series
+    from pipeline.io.series import read_series
 
     with tempfile.TemporaryDirectory() as tmp:
         extra = [a for setting in settings for a in ("--set", setting)]
@@ -288,11 +290,11 @@ def run_drops(report, spacing=0.02):
             v0 = len(x) * spacing ** 3
             row = {"particles": int(len(x))}
             for name, fn in (
-                    ("scene", lambda: scene_surface(x, spacing)),
+                    ("scene", lambda x=x: scene_surface(x, spacing)),
                     ("scene_without_correction",
-                     lambda: scene_surface(x, spacing, volume_correction=False)),
-                    ("scene_isotropic", lambda: scene_surface(x, spacing, anisotropic=False)),
-                    ("splashsurf", lambda: splashsurf_surface(x, spacing))):
+                     lambda x=x: scene_surface(x, spacing, volume_correction=False)),
+                    ("scene_isotropic", lambda x=x: scene_surface(x, spacing, anisotropic=False)),
+                    ("splashsurf", lambda x=x: splashsurf_surface(x, spacing))):
                 row[name] = float(mesh_stats(*fn()).volume / v0 - 1.0)
             out[f"radius_{radius}_jitter_{jitter}"] = row
             report(f"  ball r={radius} jitter {jitter}: " + "  ".join(
@@ -330,9 +332,10 @@ def run_pools(report, spacings):
                                                              - 1.0),
                              "bumpiness": _top_bumpiness(pts, tank, spacing)}
         pools[key] = row
-        report(f"  pool {key} ({row['particles']} particles, settled in {wall:.0f} s): " + "  ".join(
-            f"{k} {v['volume_error']:+.4f} (bumps {v['bumpiness']:.4f})"
-            for k, v in row.items() if isinstance(v, dict) and "volume_error" in v))
+        report(f"  pool {key} ({row['particles']} particles, settled in {wall:.0f} s): "
+               + "  ".join(f"{k} {v['volume_error']:+.4f} (bumps {v['bumpiness']:.4f})"
+                           for k, v in row.items()
+                           if isinstance(v, dict) and "volume_error" in v))
         rest[key] = _temporal_rest(frames, spacing, tank, report)
     return pools, rest
 
@@ -349,7 +352,8 @@ def _temporal_rest(frames, spacing, tank, report):
     dz = np.diff(frames[:, top, 2], axis=0)
     out = {"particles_top_layer_rms_dz_per_frame": [float(v) for v in
                                                     np.sqrt(np.mean(dz ** 2, axis=1)) / spacing]}
-    report(f"    at rest, the top layer's particles move {np.mean(out['particles_top_layer_rms_dz_per_frame']):.5f} "
+    report(f"    at rest, the top layer's particles move "
+           f"{np.mean(out['particles_top_layer_rms_dz_per_frame']):.5f} "
            f"spacings per frame (RMS, vertical)")
     for name, fn in (("scene", lambda x: scene_surface(x, spacing, tank)),
                      ("splashsurf", lambda x: splashsurf_surface(x, spacing))):
@@ -451,11 +455,11 @@ def run_motion(report, *settings):
 def across_frames(meshes, frames, spacing, tank):
     """The scene's surfaces filtered across five frames, as ``blobflow surface --across-frames
     2`` writes them (:func:`filters.surface.temporal.follow_particles_across_frames`, weights
-    :func:`pipeline.across_frames.weights_across`; every particle is in every frame, in the
+    :func:`pipeline.surface.across_frames.weights_across`; every particle is in every frame, in the
     order of its id)."""
     from filters.surface.linecast import TriangleGrid
     from filters.surface.temporal import follow_particles_across_frames
-    from pipeline.across_frames import weights_across
+    from pipeline.surface.across_frames import weights_across
 
     w = weights_across(2)  # frames k-2 .. k+2: 1, 2, 3, 2, 1 over 9
     rows = np.arange(frames.shape[1])
@@ -494,8 +498,8 @@ def run_sheets(report, spacing=0.02):
         for factor in (1.0, 1.2, 1.4, 1.6, 1.8):
             x = sheet(factor, layers, spacing)
             row = {}
-            for name, fn in (("scene", lambda: scene_surface(x, spacing)),
-                             ("splashsurf", lambda: splashsurf_surface(x, spacing))):
+            for name, fn in (("scene", lambda x=x: scene_surface(x, spacing)),
+                             ("splashsurf", lambda x=x: splashsurf_surface(x, spacing))):
                 c, cav, h = holes(*fn())
                 row[name] = {"components": int(c), "cavities": int(cav), "holes": int(h)}
             out[f"layers_{layers}_spacing_{factor}"] = row

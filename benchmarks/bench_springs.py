@@ -146,7 +146,7 @@ def implicit(n, variants, steps, k_hooke=1e4, scheme="backward_euler", plane="xy
         step(target, state, h, solver=solver, **options)  # compile, pattern, first step
         runs[name] = (system, target, state, solver, options, dict(t=[], nw=[], li=[], di=[]))
     for _ in range(steps):
-        for name, (system, target, state, solver, options, rec) in runs.items():
+        for _name, (_system, target, state, solver, options, rec) in runs.items():
             t0 = time.perf_counter()
             info = step(target, state, h, solver=solver, **options)
             rec["t"].append(time.perf_counter() - t0)
@@ -155,7 +155,7 @@ def implicit(n, variants, steps, k_hooke=1e4, scheme="backward_euler", plane="xy
             rec["di"].append(info.direct_solves)
     rows = []
     ref = runs[variants[-1]][2] if variants[-1] == "direct" else None
-    for name, (system, target, state, solver, options, rec) in runs.items():
+    for name, (system, _target, state, solver, options, rec) in runs.items():
         row = dict(particles=n * n, springs=int(top.springs.shape[0]), unknowns=3 * n * n,
                    start="hanging" if plane == "xz" else "horizontal, pinned at two corners",
                    nnz_csr=int(system.system_matrix(state.positions, state.positions, h).nnz),
@@ -198,9 +198,10 @@ def _warp_integrator(top, damping):
 def explicit(n=64, frames=10, substeps=16, repeats=9):
     """Symplectic Euler substeps, ours and Warp's, interleaved; best of ``repeats`` each.
 
-    The machine is shared, so the implementations take turns (ours as configured — parallel
-    on 2 threads above ``PARALLEL_MIN_SPRINGS_EXPLICIT`` springs —, ours forced serial, Warp) and each keeps its fastest block of ``frames * substeps`` substeps: a slow block
-    caused by another process then hits all of them alike instead of one.
+    The machine is shared, so the implementations take turns (ours as configured — parallel on 2
+    threads above ``PARALLEL_MIN_SPRINGS_EXPLICIT`` springs —, ours forced serial, Warp) and each
+    keeps its fastest block of ``frames * substeps`` substeps: a slow block caused by another
+    process then hits all of them alike instead of one.
     """
     import warp as wp
 

@@ -26,8 +26,8 @@ Tools, each in its own subprocess (peak resident memory per tool):
   volume s^3) onto a vtkImageData with the same cell size + vtkFlyingEdges3D.
 
 The machine is shared, so runs alternate between the tools, one fresh process per run
-(``--repeats`` rounds for the 100k cases, 2 for the others). Reported per tool and case: the best wall
-time (all listed), the largest peak RSS of its processes (VmHWM) and the largest increase over
+(``--repeats`` rounds for the 100k cases, 2 for the others). Reported per tool and case: the best
+wall time (all listed), the largest peak RSS of its processes (VmHWM) and the largest increase over
 the RSS after imports, Numba warm-up and data generation, triangles, closed / manifold, and the
 volume error against the particles' volume ``N s^3``. The absolute peak includes the
 interpreter and libraries: about 230 MiB for blobflow (Numba's LLVM, VTK), 50 MiB for
@@ -151,7 +151,7 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
         warm = lambda: None  # noqa: E731
     elif tool == "blobflow":
         from filters.surface.splat import splat_sparse
-        from pipeline.contour import contour_sparse
+        from pipeline.surface.contour import contour_sparse
 
         def run():
             t0 = time.perf_counter()
@@ -263,7 +263,7 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
 def measure_mesh(row: dict, mesh_path: str) -> None:
     """Mesh measures (and, for blobflow, the smoothing stage) in the parent process."""
     from filters.surface.mesh import mesh_stats
-    from pipeline.contour import mesh_to_polydata, polydata_to_mesh
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
     from pipeline.surface import Smooth
 
     data = np.load(mesh_path)

@@ -97,15 +97,16 @@ RUNS = [
                                       "--option", "anisotropic=true",
                                       "--option", "volume_correction=false"]),
     ("surface_dense_anisotropic", ["surface", "{root}/drop_particles_copy/particles.pvd",
-                                   "--radius", "0.01", "--kernel", "sph", "--option", "sparse=false",
-                                   "--smooth-iterations", "0", "--option", "feature_smoothing=3",
+                                   "--radius", "0.01", "--kernel", "sph", "--option",
+                                   "sparse=false", "--smooth-iterations", "0", "--option",
+                                   "feature_smoothing=3",
                                    "--option", "anisotropic=true",
                                    "--option", "volume_correction=true"]),
     ("surface_radii_anisotropic", ["surface", "{root}/smoke_particles_copy/particles.pvd",
                                    "--radius", "0.02", "--kernel", "sph", "--option",
                                    "radius_array=size", "--smooth-iterations", "0",
-                                   "--option", "feature_smoothing=0", "--option", "anisotropic=true",
-                                   "--option", "volume_correction=false"]),
+                                   "--option", "feature_smoothing=0", "--option",
+                                   "anisotropic=true", "--option", "volume_correction=false"]),
     ("surface_radii_blobby", ["surface", "{root}/smoke_particles_copy/particles.pvd",
                               "--radius", "0.02", "--kernel", "blobby", "--option",
                               "radius_array=size", "--smooth-iterations", "0",
@@ -287,7 +288,8 @@ def compare(reference: dict, current: dict) -> list[str]:
         for rel in sorted(set(ref) | set(cur)):
             a, b = ref.get(rel), cur.get(rel)
             if a is None or b is None:
-                lines.append(f"{run}/{rel}: only in the {'current run' if a is None else 'reference'}")
+                where = "current run" if a is None else "reference"
+                lines.append(f"{run}/{rel}: only in the {where}")
             elif a["decoded"] != b["decoded"]:
                 lines.append(f"{run}/{rel}: data differ")
             elif a["raw"] != b["raw"] and a["decoded"] is None:

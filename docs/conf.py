@@ -189,25 +189,8 @@ def write_api_pages() -> None:
         (API_DIR / f"{name}.rst").write_text("\n".join(lines), encoding="utf-8")
 
 
-#: Docstrings whose reST is broken at source, mended here until they are fixed there:
-#: ``{object: [(old, new), ...]}`` replaced in the docstring's text before numpydoc reads it.
-DOCSTRING_MENDS = {
-    # a section title over two lines (reST titles are one line): a bold paragraph instead
-    "filters.integrators": [
-        ("Schemes (the names of :data:`SCHEMES`; the advection of :mod:`filters.advect` uses the "
-         "same\nvocabulary, plus ``\"rk2\"`` and ``\"rk4\"``)\n" + "-" * 92 + "\n",
-         "**Schemes** (the names of :data:`SCHEMES`; the advection of :mod:`filters.advect` uses "
-         "the same\nvocabulary, plus ``\"rk2\"`` and ``\"rk4\"``):\n\n"),
-    ],
-    # |x| outside a literal is a reST substitution reference
-    "filters.noise.fractal.fbm_value_grad_hess": [("(no turbulence: |N| is",
-                                                   "(no turbulence: ``|N|`` is")],
-    "filters.sph.particles.integrate": [("returns max |v| after", "returns max ``|v|`` after")],
-}
-
-
-def _mend_docstring(app, what, name, obj, options, lines):
-    """Mend the docstrings of :data:`DOCSTRING_MENDS`; drop a data object's class docstring.
+def _data_docstring(app, what, name, obj, options, lines):
+    """Drop a data object's class docstring.
 
     A module constant without a ``#:`` comment would show its type's docstring (a NumPy
     array's: ndarray's whole reference); it shows its value only.  (Data never carries a
@@ -223,16 +206,6 @@ def _mend_docstring(app, what, name, obj, options, lines):
             commented = False
         if not commented:
             lines[:] = []
-    mends = DOCSTRING_MENDS.get(name)
-    if not mends:
-        return
-    text = "\n".join(lines)
-    for old, new in mends:
-        if old not in text:
-            raise ValueError(f"docs/conf.py: the mend of {name}'s docstring no longer applies "
-                             f"(fixed at source? remove it from DOCSTRING_MENDS): {old[:60]!r}")
-        text = text.replace(old, new)
-    lines[:] = text.split("\n")
 
 
 def _summary_keeping_markup(doc, settings):
@@ -298,7 +271,7 @@ def setup(app):
     from sphinx.ext import autosummary
 
     autosummary.extract_summary = _summary_keeping_markup
-    app.connect("autodoc-process-docstring", _mend_docstring, priority=100)
+    app.connect("autodoc-process-docstring", _data_docstring, priority=100)
     app.connect("missing-reference", _resolve_reexport)
 
 
@@ -356,7 +329,7 @@ html_theme_options = {
 }
 # pages without sections of their own: no section navigation; the benchmark table gets the width
 html_sidebars = {page: [] for page in ("index", "getting_started", "benchmarks", "design",
-                                       "changelog")}
+                                       "features", "changelog")}
 html_context = {"default_mode": "light"}
 html_show_sourcelink = False
 

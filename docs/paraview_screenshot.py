@@ -11,7 +11,7 @@ import sys
 import tempfile
 
 here = os.path.dirname(os.path.abspath(__file__))
-startup = os.path.join(here, "..", "pipeline", "paraview_startup.py")
+startup = os.path.join(here, "..", "pipeline", "paraview", "startup.py")
 ns = {"__file__": startup, "__name__": "__main__"}
 exec(open(startup).read(), ns)  # noqa: S102 - loads the plugin
 

@@ -3,7 +3,7 @@ Surfaces of many frames on a Dask cluster
 =========================================
 
 Reconstructing the surface of a particle series is one independent task per frame.
-:func:`pipeline.frames.surface_series` runs them serially, or on a Dask cluster given as
+:func:`pipeline.surface.frames.surface_series` runs them serially, or on a Dask cluster given as
 ``client=``: each frame is written atomically, the collection once all frames are done, a
 failed task is retried, and ``resume=True`` computes only what is missing.  Serial and parallel
 runs write byte-identical files.  (``blobflow surface PARTICLES.pvd --workers N`` is the same
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import pyvista as pv
 
-from pipeline.frames import surface_series
 from pipeline.render import render_still
 from pipeline.scene import load_scene
-from pipeline.surface_options import liquid_surface_options
+from pipeline.surface import surface_series
+from pipeline.surface.options import liquid_surface_options
 
 pv.OFF_SCREEN = True  # draw without a display
 
@@ -48,7 +48,7 @@ def simulate():
 # The surfaces, on the cluster
 # ----------------------------
 # The options are those of :func:`pipeline.surface.surface_stages`; for a liquid in a tank,
-# :func:`~pipeline.surface_options.liquid_surface_options` gives the scenes' own surface (the
+# :func:`~pipeline.surface.options.liquid_surface_options` gives the scenes' own surface (the
 # particle radius from the spacing, the surface cut at the tank's walls).
 
 

@@ -4,17 +4,30 @@ Simulations implement the protocol in :mod:`filters.simulation`: an immutable mo
 that can be copied and restored, ``step(dt)`` / ``advance_to(t)``, and frames of plain arrays.
 """
 
-from .simulation import (
-    Frame,
-    OutputSpec,
-    Simulation,
-    SimulationError,
-    SimulationUnstableError,
-    State,
-    frame_times,
-)
-from .ballistic import BallisticModel, BallisticParticles
-from .rigid import RigidBodies, RigidBody
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .ballistic import BallisticModel, BallisticParticles
+    from .rigid import RigidBodies, RigidBody
+    from .simulation import (
+        Frame,
+        OutputSpec,
+        Simulation,
+        SimulationError,
+        SimulationUnstableError,
+        State,
+        frame_times,
+    )
+
+#: Where the names below live: ``import filters`` loads neither NumPy nor Numba; a name loads
+#: its module when first used (PEP 562).
+_EXPORTS = {
+    **dict.fromkeys(["Frame", "OutputSpec", "Simulation", "SimulationError",
+                     "SimulationUnstableError", "State", "frame_times"], ".simulation"),
+    "BallisticModel": ".ballistic", "BallisticParticles": ".ballistic",
+    "RigidBody": ".rigid", "RigidBodies": ".rigid",
+}
 
 __all__ = [
     "Frame",
@@ -29,3 +42,16 @@ __all__ = [
     "RigidBody",
     "RigidBodies",
 ]
+
+
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

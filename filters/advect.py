@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -37,6 +38,13 @@ from .linalg.dense3 import implicit_step3
 from .noise import noise_variation
 from .simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
 from .validation import check_choice, check_finite_vector, check_int, check_range
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
+
+    from .geometry import Shape
 
 __all__ = ["BoxEmitter", "NoiseAdvection", "INTEGRATORS", "check_integrator"]
 
@@ -272,11 +280,13 @@ class NoiseAdvection(Simulation):
     variable_count = True
     instability_hint = "the velocity field is too strong for the step, or its Jacobian is singular"
 
-    def __init__(self, field, emitter: BoxEmitter | None = None, *, positions=None,
-                 initial_lifetime: float = math.inf, integrator: str = "rk4", colliders=(),
+    def __init__(self, field: Field, emitter: BoxEmitter | None = None, *,
+                 positions: ArrayLike | None = None, initial_lifetime: float = math.inf,
+                 integrator: str = "rk4", colliders: Shape | Sequence[Shape] = (),
                  collider_margin: float = 0.0, max_dt: float = 1.0 / 60.0,
-                 max_particles: int = 1_000_000, size_range=(1.0, 1.0), color_range=(0.0, 1.0),
-                 variation_frequency: float = 1.0, seed: int = 0):
+                 max_particles: int = 1_000_000, size_range: tuple[float, float] = (1.0, 1.0),
+                 color_range: tuple[float, float] = (0.0, 1.0), variation_frequency: float = 1.0,
+                 seed: int = 0):
         if not isinstance(field, Field):
             raise TypeError(f"field must be a filters.fields.Field, got {type(field).__name__}")
         if emitter is not None and not isinstance(emitter, BoxEmitter):

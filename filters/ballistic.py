@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
 from .simulation import OutputSpec, Simulation, State
 from .validation import check_finite_vector, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["BallisticModel", "BallisticParticles"]
 
@@ -124,8 +128,9 @@ class BallisticParticles(Simulation):
     contact (a frictionless floor).
     """
 
-    def __init__(self, positions, velocities=None, *, gravity=(0.0, 0.0, -9.81), floor=0.0,
-                 restitution=0.7, max_dt=1.0 / 120.0):
+    def __init__(self, positions: ArrayLike, velocities: ArrayLike | None = None, *,
+                 gravity: ArrayLike = (0.0, 0.0, -9.81), floor: float = 0.0,
+                 restitution: float = 0.7, max_dt: float = 1.0 / 120.0):
         gravity = check_finite_vector("gravity", gravity, 3)
         check_range("restitution", restitution, 0.0, 1.0)
         check_range("floor", floor, -math.inf, math.inf)

@@ -22,9 +22,13 @@ threads: everything built on it is deterministic.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "cell_keys",
@@ -144,7 +148,9 @@ def gather_points(x, order):
     return out
 
 
-def sort_into_cells(points, origin, inv_cell, dims, nchunks: int = 1):
+def sort_into_cells(points: np.ndarray, origin: ArrayLike, inv_cell: float, dims: ArrayLike,
+                    nchunks: int = 1) -> tuple[NDArray[np.int32], NDArray[np.int64],
+                                               NDArray[np.float64]]:
     """Points sorted into the cells of a uniform grid (x fastest).
 
     Parameters
@@ -198,7 +204,9 @@ def cell_window(cidx, dims, reach, start, origin, cell):
             xa, xb, ya, yb, za, zb, total)
 
 
-def fitting_cells(points, width: float, max_cells: int = MAX_CELLS):
+def fitting_cells(points: np.ndarray, width: float,
+                  max_cells: int = MAX_CELLS) -> tuple[NDArray[np.float64], float,
+                                                       NDArray[np.int64]]:
     """A uniform grid over ``points`` with cells at least ``width`` wide.
 
     Cells are padded by ``1e-9`` relative, so that the 27 cells around a point hold every point

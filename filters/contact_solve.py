@@ -29,10 +29,22 @@ semi-definite particle blocks (N, 3, 3)).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit
 
 from .linalg.cg import vdot
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import NDArray
+
+    from .elastic.contact_model import ContactModel
+    from .linalg.protocol import ImplicitSystem
+    from .linalg.solver import LinearSolver
+    from .simulation import State
 
 __all__ = ["minimize_with_contact", "feasible_start", "explicit_contact", "linearized_contact",
            "apply_explicit_contact", "step_kinetic_energy"]
@@ -73,8 +85,11 @@ def _diagonal_solve(scale, blocks, g, pinned, d):
         d[i, 2] = -(c02 * g0 + c12 * g1 + c22 * g2) / det
 
 
-def minimize_with_contact(dx, q_value, q_gradient, solve, contact, x0, h, pinned, *, tol,
-                          max_iter, decrement_tol):
+def minimize_with_contact(dx: np.ndarray, q_value: Callable[[np.ndarray], float],
+                          q_gradient: Callable[[np.ndarray], np.ndarray],
+                          solve: Callable[..., np.ndarray], contact: ContactModel, x0: np.ndarray,
+                          h: float, pinned: np.ndarray, *, tol: float, max_iter: int,
+                          decrement_tol: float) -> tuple[NDArray[np.float64], int, int]:
     """Minimise ``Q(dx) + C(dx)`` by Newton's method with a backtracking line search.
 
     Parameters
@@ -144,7 +159,8 @@ def minimize_with_contact(dx, q_value, q_gradient, solve, contact, x0, h, pinned
     return dx, it, halvings
 
 
-def feasible_start(contact, x0, dx, pinned):
+def feasible_start(contact: ContactModel, x0: np.ndarray, dx: np.ndarray,
+                   pinned: np.ndarray) -> NDArray[np.float64]:
     """``dx`` scaled per particle (by the contact model's :meth:`particle_steps`) so that no
     contact point crosses a collider on the way from ``x0``; pinned particles stay."""
     fractions = contact.particle_steps(x0, np.zeros_like(dx), dx)
@@ -153,7 +169,9 @@ def feasible_start(contact, x0, dx, pinned):
     return out
 
 
-def explicit_contact(masses, pinned, x0, dx_free, h, contact, *, tol=1e-4, max_iter=20):
+def explicit_contact(masses: np.ndarray, pinned: np.ndarray, x0: np.ndarray, dx_free: np.ndarray,
+                     h: float, contact: ContactModel, *, tol: float = 1e-4,
+                     max_iter: int = 20) -> tuple[NDArray[np.float64] | None, int]:
     """Contact correction of an explicit step: minimise ``|c|_M^2 / (2 h^2) + C(dx_free + c)``.
 
     Parameters
@@ -214,8 +232,10 @@ def explicit_contact(masses, pinned, x0, dx_free, h, contact, *, tol=1e-4, max_i
     return c, it
 
 
-def linearized_contact(system, linear, x0, v, h, contact, *, tol, max_iter, lin_tol,
-                       lin_max_iter, warm=None):
+def linearized_contact(system: ImplicitSystem, linear: LinearSolver, x0: np.ndarray, v: np.ndarray,
+                       h: float, contact: ContactModel, *, tol: float, max_iter: int,
+                       lin_tol: float, lin_max_iter: int,
+                       warm: np.ndarray | None = None) -> tuple[NDArray[np.float64], int, int, int]:
     """The linearised backward Euler step with contacts: minimise
     ``Q(dx) = |dx - h v|_M^2 / (2 h^2) - f_c(x0) . dx + dx^T (K + C / h) dx / 2`` (whose
     minimiser is Baraff & Witkin's step; ``K``, ``C`` and ``f_c``, the conservative forces, at
@@ -282,7 +302,8 @@ def linearized_contact(system, linear, x0, v, h, contact, *, tol, max_iter, lin_
     return dx, it, counts[0], counts[1]
 
 
-def apply_explicit_contact(system, state, x0, dx_free, h, contact, tol):
+def apply_explicit_contact(system: ImplicitSystem, state: State, x0: np.ndarray,
+                           dx_free: np.ndarray, h: float, contact: ContactModel, tol: float) -> int:
     """Correct an explicit step for contacts (:func:`explicit_contact`), in place:
     ``x = x0 + dx_free + c``, ``v += c / h``; particles without contact keep their bits.
     Returns the Newton iterations."""

@@ -23,11 +23,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from .validation import check_finite, check_finite_vector, check_points
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "Shape",
@@ -59,7 +65,7 @@ class Shape:
         """Signed distances (m) at checked ``(N, 3) float64`` points, ``(N,)``."""
         raise NotImplementedError
 
-    def bounds(self):
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lo, hi)`` (m) of the solid, or None if it is unbounded."""
         return None
 
@@ -105,7 +111,7 @@ class Plane(Shape):
             raise ValueError("normal must be a non-zero vector")
         object.__setattr__(self, "normal", tuple((n / length).tolist()))
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         return (points - np.array(self.point)) @ np.array(self.normal)
 
 
@@ -121,10 +127,10 @@ class Sphere(Shape):
         object.__setattr__(self, "radius", check_finite("radius", self.radius, 0.0, math.inf,
                                                         low_inclusive=False))
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         return np.linalg.norm(points - np.array(self.center), axis=1) - self.radius
 
-    def bounds(self):
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         c = np.array(self.center)
         return c - self.radius, c + self.radius
 
@@ -144,7 +150,7 @@ class Box(Shape):
             raise ValueError(f"upper must exceed lower on every axis, got lower={lower.tolist()}, "
                              f"upper={upper.tolist()}")
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         lo = np.array(self.lower)
         hi = np.array(self.upper)
         c = 0.5 * (lo + hi)
@@ -154,7 +160,7 @@ class Box(Shape):
         inside = np.minimum(q.max(axis=1), 0.0)
         return outside + inside
 
-    def bounds(self):
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array(self.lower), np.array(self.upper)
 
 
@@ -174,7 +180,7 @@ class Complement(Shape):
     def __post_init__(self):
         _check_shape("shape", self.shape)
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         return -self.shape.evaluate(points)
 
 
@@ -192,10 +198,10 @@ class _Binary(Shape):
 class Union(_Binary):
     """``min(a, b)``: inside either."""
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         return np.minimum(self.a.evaluate(points), self.b.evaluate(points))
 
-    def bounds(self):
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         ba, bb = self.a.bounds(), self.b.bounds()
         if ba is None or bb is None:
             return None
@@ -206,10 +212,10 @@ class Union(_Binary):
 class Intersection(_Binary):
     """``max(a, b)``: inside both."""
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         return np.maximum(self.a.evaluate(points), self.b.evaluate(points))
 
-    def bounds(self):
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         ba, bb = self.a.bounds(), self.b.bounds()
         if ba is None:
             return bb
@@ -222,10 +228,10 @@ class Intersection(_Binary):
 class Difference(_Binary):
     """``max(a, -b)``: inside ``a`` and outside ``b``."""
 
-    def evaluate(self, points):
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
         return np.maximum(self.a.evaluate(points), -self.b.evaluate(points))
 
-    def bounds(self):
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         return self.a.bounds()
 
 
@@ -250,7 +256,7 @@ def _pack_row(i, shape) -> np.ndarray:
         f"combinations have no continuous Hessian for the curl-noise ramp), got {shape!r}")
 
 
-def pack_shapes(shapes) -> np.ndarray:
+def pack_shapes(shapes: Shape | Sequence[Shape] | np.ndarray) -> np.ndarray:
     """Pack planes, spheres and spherical containers into the ``(C, 8) float64`` rows that
     :func:`packed_distance` reads.
 
@@ -364,7 +370,8 @@ def _sdf_many(colliders, pts, d_out, n_out):
         n_out[i, 2] = nz
 
 
-def union_distance(points, shapes) -> tuple[np.ndarray, np.ndarray]:
+def union_distance(points: ArrayLike,
+                   shapes: Shape | Sequence[Shape] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance (m) to the union of packable ``shapes`` and the nearest one's normal.
 
     Parameters

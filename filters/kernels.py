@@ -55,9 +55,13 @@ to be called inside other Numba kernels; the array functions (:func:`kernel_valu
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "SMOOTHING_KERNELS",
@@ -356,7 +360,7 @@ def _check_h(h):
     return h
 
 
-def kernel_value(name: str, r, h: float) -> np.ndarray:
+def kernel_value(name: str, r: ArrayLike, h: float) -> np.ndarray:
     """Kernel values for an array of distances.
 
     Parameters
@@ -382,7 +386,7 @@ def kernel_value(name: str, r, h: float) -> np.ndarray:
     return out.reshape(r.shape)
 
 
-def kernel_gradient(name: str, d, h: float) -> np.ndarray:
+def kernel_gradient(name: str, d: ArrayLike, h: float) -> np.ndarray:
     """Kernel gradients ``grad W(d)`` for an array of difference vectors ``d = x_i - x_j``.
 
     Parameters
@@ -409,7 +413,7 @@ def kernel_gradient(name: str, d, h: float) -> np.ndarray:
     return out
 
 
-def kernel_laplacian(name: str, r, h: float) -> np.ndarray:
+def kernel_laplacian(name: str, r: ArrayLike, h: float) -> np.ndarray:
     """Laplacian of the ``poly6`` or ``viscosity`` kernel at distances ``r`` (1/m^5).
 
     Parameters

@@ -33,6 +33,7 @@ for a build plus two passes over 97k points, and more with a skin and more passe
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -40,6 +41,9 @@ from numba import njit, prange
 
 from .binning import counting_sort, gather_points, sort_into_cells
 from .validation import check_choice, check_int, check_points, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["NeighborSearch", "BACKENDS", "grid_cell_coords", "bounds", "grid_query_padded"]
 
@@ -237,8 +241,10 @@ def _compact(table, counts):
     return offsets, indices
 
 
-def grid_query_padded(q, self_query, half, sx, start, order, origin, cell, dims, reach, r2,
-                      capacity=48):
+def grid_query_padded(q: np.ndarray, self_query: bool, half: bool, sx: np.ndarray,
+                      start: np.ndarray, order: np.ndarray, origin: np.ndarray, cell: float,
+                      dims: np.ndarray, reach: int, r2: float,
+                      capacity: int = 48) -> tuple[NDArray[np.int32], NDArray[np.int32], int]:
     """Padded neighbour table (M, K) and counts (M,), retrying once with the exact K if needed."""
     n = q.shape[0]
     capacity = max(int(capacity), 1)
@@ -394,7 +400,7 @@ class NeighborSearch:
         self.backend = None
 
     # -- building -----------------------------------------------------------------------------
-    def build(self, points) -> "NeighborSearch":
+    def build(self, points: np.ndarray) -> "NeighborSearch":
         """Index ``points`` ((N, 3) float64, m) for queries; returns ``self``."""
         try:
             points = np.ascontiguousarray(points, dtype=np.float64)
@@ -440,7 +446,8 @@ class NeighborSearch:
         return self
 
     # -- queries ------------------------------------------------------------------------------
-    def query(self, queries=None, *, sort=False, half=False):
+    def query(self, queries: ArrayLike | None = None, *, sort: bool = False,
+              half: bool = False) -> tuple[NDArray[np.int64], NDArray[np.int32]]:
         """Neighbours within ``radius`` as CSR lists.
 
         Parameters

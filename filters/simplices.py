@@ -16,7 +16,12 @@ with local coordinates ``t`` in ``[0, 1]^3`` lies in the tetrahedron of the orde
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["CORNER_OFFSETS", "KUHN_ORDERS", "KUHN_TETS", "KUHN_DIRECTIONS", "kuhn_locate"]
 
@@ -54,7 +59,7 @@ KUHN_DIRECTIONS = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, 0, 1
                             [1, 1, 1]], np.int64)
 
 
-def kuhn_locate(t):
+def kuhn_locate(t: np.ndarray) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The tetrahedron of the Kuhn split holding local points and their barycentric weights.
 
     Parameters

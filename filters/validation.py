@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Collection
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["check_range", "check_finite", "check_int", "check_bool", "check_finite_vector",
            "check_points", "check_choice", "check_radii"]
 
 
-def check_range(name: str, value, low: float = -math.inf, high: float = math.inf, *,
+def check_range(name: str, value: object, low: float = -math.inf, high: float = math.inf, *,
                 low_inclusive: bool = True, high_inclusive: bool = True) -> float:
     """Return ``value`` as a float if it is a real number within the given range.
 
@@ -35,7 +41,7 @@ def check_range(name: str, value, low: float = -math.inf, high: float = math.inf
     return value
 
 
-def check_finite(name: str, value, low: float = -math.inf, high: float = math.inf, *,
+def check_finite(name: str, value: object, low: float = -math.inf, high: float = math.inf, *,
                  low_inclusive: bool = True, high_inclusive: bool = True) -> float:
     """Like :func:`check_range`, but +-inf is refused too (even where the range is unbounded).
 
@@ -53,7 +59,7 @@ def check_finite(name: str, value, low: float = -math.inf, high: float = math.in
     return value
 
 
-def check_int(name: str, value, low: int | None = None, high: int | None = None) -> int:
+def check_int(name: str, value: object, low: int | None = None, high: int | None = None) -> int:
     """Return ``value`` as an int if it is an integer within ``[low, high]``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise TypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
@@ -65,7 +71,7 @@ def check_int(name: str, value, low: int | None = None, high: int | None = None)
     return value
 
 
-def check_finite_vector(name: str, value, size: int) -> np.ndarray:
+def check_finite_vector(name: str, value: ArrayLike, size: int) -> np.ndarray:
     """Return ``value`` as a finite float64 vector of length ``size``."""
     try:
         array = np.asarray(value, dtype=np.float64)
@@ -78,7 +84,7 @@ def check_finite_vector(name: str, value, size: int) -> np.ndarray:
     return array
 
 
-def check_points(name: str, value) -> np.ndarray:
+def check_points(name: str, value: ArrayLike) -> np.ndarray:
     """Return ``value`` as a C-contiguous finite ``(N, 3) float64`` array."""
     try:
         array = np.ascontiguousarray(value, dtype=np.float64)
@@ -91,7 +97,7 @@ def check_points(name: str, value) -> np.ndarray:
     return array
 
 
-def check_choice(name: str, value, choices) -> str:
+def check_choice(name: str, value: object, choices: Collection[str]) -> str:
     """Return ``value`` if it is one of ``choices``; the error lists the options."""
     if value not in choices:
         options = ", ".join(repr(c) for c in choices)
@@ -99,7 +105,7 @@ def check_choice(name: str, value, choices) -> str:
     return value
 
 
-def check_bool(name: str, value) -> bool:
+def check_bool(name: str, value: object) -> bool:
     """Return ``value`` as a bool if it is True or False (NumPy's too); anything else, such as
     the string ``"false"`` that ``bool()`` would take for True, raises TypeError."""
     if isinstance(value, (bool, np.bool_)):
@@ -107,7 +113,7 @@ def check_bool(name: str, value) -> bool:
     raise TypeError(f"{name} must be True or False, got {value!r}")
 
 
-def check_radii(name: str, radius, n: int) -> np.ndarray:
+def check_radii(name: str, radius: ArrayLike, n: int) -> np.ndarray:
     """Return per-point radii as a finite, positive ``(n,) float64`` array.
 
     ``radius`` is one positive finite number (broadcast) or an array of ``n`` of them; anything

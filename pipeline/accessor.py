@@ -22,8 +22,9 @@ series::
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import pyvista as pv
 
@@ -34,7 +35,7 @@ def _options_of_reconstruct(method: Callable) -> Callable:
     """Give ``method(self, radius, **options)`` the signature of
     :func:`pipeline.surface.reconstruct` (without its first argument), so that ``help()`` and
     ``inspect.signature`` list every option."""
-    from .surface import reconstruct
+    from .surface.stages import reconstruct
 
     parameters = list(inspect.signature(reconstruct).parameters.values())[1:]
     self_parameter = inspect.Parameter("self", inspect.Parameter.POSITIONAL_OR_KEYWORD)
@@ -76,7 +77,7 @@ class BlobflowAccessor:
             The triangle surface (m), bitwise the surface a :class:`pipeline.Flow` writes with
             the same options.
         """
-        from .surface import reconstruct
+        from .surface.stages import reconstruct
 
         return reconstruct(self._dataset, radius, **options)
 
@@ -120,7 +121,7 @@ class BlobflowMultiBlockAccessor:
         -------
         pyvista.MultiBlock
         """
-        from .surface import reconstruct, surface_stages
+        from .surface.stages import reconstruct, surface_stages
 
         progress_bar = bool(options.pop("progress_bar", False))
         surface_stages(radius, **options)  # every option checked before the first block
@@ -135,7 +136,7 @@ class BlobflowMultiBlockAccessor:
                 return None
             if isinstance(block, pv.MultiBlock):
                 out = pv.MultiBlock()
-                for name, child in zip(block.keys(), block):
+                for name, child in zip(block.keys(), block, strict=False):
                     out.append(each(child), name)
                 return out
             surface = reconstruct(block, radius, **options)
@@ -177,7 +178,7 @@ class BlobflowMultiBlockAccessor:
         TypeError
             If a block is a multiblock or a type a frame cannot be.
         """
-        from .series import SeriesWriter
+        from .io.series import SeriesWriter
 
         blocks = list(self._multiblock)
         if times is None:
@@ -195,6 +196,6 @@ class BlobflowMultiBlockAccessor:
                 raise TypeError(f"block {i} is {'empty' if block is None else 'a multiblock'}: "
                                 f"a series frame is one dataset")
         writer = SeriesWriter(path)
-        for block, t in zip(blocks, times):
+        for block, t in zip(blocks, times, strict=False):
             writer.write(block, float(t))
         return Path(path)

@@ -6,7 +6,7 @@ from :class:`Algorithm` keep the exception, and :func:`raise_pending` re-raises 
 so a simulation that blows up stops the run with its own error message instead of writing an
 empty frame. :func:`connect_chain` wires a chain of algorithms (any VTK algorithm, ours or not),
 :func:`update` updates one and re-raises what failed, :func:`run_chain` does both for a chain fed
-by a data object; :class:`pipeline.Flow` and the frame tasks of :mod:`pipeline.frames` use them.
+by a data object; :class:`pipeline.Flow` and the frame tasks of :mod:`pipeline.tasks` use them.
 
 A :class:`ParticleStage` (feature smoothing, attribute interpolation) reads the particles on its
 second input port: :func:`connect_chain` connects that port to the chain's input.
@@ -26,7 +26,9 @@ from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
 
 if TYPE_CHECKING:
-    from typing import Any, Iterable, Iterator, Sequence
+    from collections.abc import Iterable, Iterator, Sequence
+    from typing import Any
+
     from vtkmodules.vtkCommonDataModel import vtkDataObject
     from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from typing import Any, Iterable
+    from collections.abc import Iterable
+    from typing import Any
 
 __all__ = ["Parameter", "parse_assignments", "TRUE_WORDS", "FALSE_WORDS", "KINDS"]
 

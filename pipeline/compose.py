@@ -7,6 +7,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm.auto import tqdm
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
@@ -14,15 +15,29 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 from filters.validation import check_bool, check_int, check_range
 
 from .algorithm import connect_chain, update
-from .checkpoint import (CHECKPOINT_SUFFIX, Checkpoint, CheckpointError, file_digest,
-                         read_checkpoint, write_checkpoint)
-from .colliders import COLLIDERS_FILE, Collider, write_colliders
-from .convert import has_state, state_from_dataset
-from .folderlock import holds_folder
-from .outfiles import sweep_temporaries
-from .series import SeriesWriter, read_frame
-from .xdmf import export_xdmf
+from .io.checkpoint import (
+    CHECKPOINT_SUFFIX,
+    Checkpoint,
+    CheckpointError,
+    file_digest,
+    read_checkpoint,
+    write_checkpoint,
+)
+from .io.colliders import COLLIDERS_FILE, Collider, write_colliders
+from .io.convert import has_state, state_from_dataset
+from .io.folderlock import holds_folder
+from .io.outfiles import sweep_temporaries
+from .io.series import SeriesWriter, read_frame
+from .io.xdmf import export_xdmf
 from .sources import SimulationSource
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterator
+
+    import numpy as np
+    from pyvista import DataSet
+
+    from filters.geometry import Shape
 
 __all__ = ["Flow", "Stage"]
 
@@ -42,7 +57,8 @@ class Stage:
 
 def _check_name(name: str) -> str:
     if not isinstance(name, str) or not name.isidentifier():
-        raise ValueError(f"an output name must be a Python identifier such as 'surface', got {name!r}")
+        raise ValueError(f"an output name must be a Python identifier such as 'surface', "
+                         f"got {name!r}")
     return name
 
 
@@ -83,7 +99,7 @@ class Flow:
         self.colliders: list[Collider] = []
 
     @property
-    def times(self):
+    def times(self) -> np.ndarray:
         """The frame times the flow runs over (s)."""
         return self.source.times
 
@@ -104,7 +120,7 @@ class Flow:
             Write this output as a series when the flow runs.
         xdmf : bool
             Also export the series as XDMF + HDF5 at the end (fixed topology only,
-            :func:`pipeline.xdmf.export_xdmf`).
+            :func:`pipeline.io.xdmf.export_xdmf`).
         draw : bool
             Whether the renders of a run draw this output.
 
@@ -115,7 +131,8 @@ class Flow:
         """
         _check_name(name)
         if name in self.stages:
-            raise ValueError(f"an output named {name!r} exists already; names: {sorted(self.stages)}")
+            raise ValueError(f"an output named {name!r} exists already; "
+                             f"names: {sorted(self.stages)}")
         write = check_bool("write", write)
         xdmf = check_bool("xdmf", xdmf)
         draw = check_bool("draw", draw)
@@ -132,11 +149,12 @@ class Flow:
         self.stages[name] = Stage(name, algorithms[-1], chain, write, xdmf, draw)
         return algorithms[-1]
 
-    def add_collider(self, name: str, shape, role: str = "solid", *, size: float = 2.0) -> Collider:
+    def add_collider(self, name: str, shape: Shape, role: str = "solid", *,
+                     size: float = 2.0) -> Collider:
         """Declare a floor, container or solid collider of the scene, written as ``colliders.vtp``.
 
         :meth:`run` writes every declared collider beside the series
-        (:mod:`pipeline.colliders`); the renderer draws them.  Declare the shapes the simulation
+        (:mod:`pipeline.io.colliders`); the renderer draws them.  Declare the shapes the simulation
         uses, so that what is drawn is what the bodies touch.
 
         Parameters
@@ -152,7 +170,7 @@ class Flow:
 
         Returns
         -------
-        pipeline.colliders.Collider
+        pipeline.io.colliders.Collider
         """
         collider = Collider(name, shape, role, size)
         if any(c.name == collider.name for c in self.colliders):
@@ -161,7 +179,7 @@ class Flow:
         self.colliders.append(collider)
         return collider
 
-    def output(self, name: str, time: float):
+    def output(self, name: str, time: float) -> DataSet:
         """Output ``name`` at ``time`` (s) as a PyVista dataset.
 
         Parameters
@@ -181,7 +199,7 @@ class Flow:
 
         return pv.wrap(self._output(name, time))
 
-    def frames(self, name: str):
+    def frames(self, name: str) -> Iterator[tuple[float, DataSet]]:
         """Yield ``(time, dataset)`` for every frame time of the flow (:meth:`output`)."""
         for t in self.times:
             yield float(t), self.output(name, float(t))
@@ -201,7 +219,7 @@ class Flow:
         """Names of the written outputs that the renders of a run draw."""
         return [s.name for s in self.stages.values() if s.write and s.draw]
 
-    def check_resume(self, directory) -> int:
+    def check_resume(self, directory: str | Path) -> int:
         """Check, without changing anything, that the series in ``directory`` can be resumed.
 
         Every written output's collection must list only frames this flow writes (its own
@@ -236,7 +254,7 @@ class Flow:
     @property
     def checkpoint_path(self) -> Path | None:
         """The checkpoint file of a run in folder ``DIR``, relative: ``NAME.checkpoint.npz``
-        for the first output ``NAME`` (:mod:`pipeline.checkpoint`); ``None`` when the source
+        for the first output ``NAME`` (:mod:`pipeline.io.checkpoint`); ``None`` when the source
         keeps none (``SimulationSource(checkpoint=False)``)."""
         if not self.source.checkpoint:
             return None
@@ -312,9 +330,9 @@ class Flow:
         write_checkpoint(directory / self.checkpoint_path,
                          Checkpoint(state, index, float(self.times[index]), digests))
 
-    @holds_folder("directory")  # one writer per folder (pipeline.folderlock)
-    def run(self, directory, *, resume: bool = False, progress: bool = True,
-            on_frame=None, checkpoint_every: int = 10,
+    @holds_folder("directory")  # one writer per folder (pipeline.io.folderlock)
+    def run(self, directory: str | Path, *, resume: bool = False, progress: bool = True,
+            on_frame: Callable[[int, float], object] | None = None, checkpoint_every: int = 10,
             checkpoint_seconds: float = 300.0) -> dict[str, Path]:
         """Run every frame and write each written output as a series in ``directory``.
 
@@ -357,7 +375,8 @@ class Flow:
         sweep_temporaries(directory)  # ours alone now (the lock): a killed run's leftovers go
         if self.colliders:
             write_colliders(self.colliders, directory / COLLIDERS_FILE)
-        writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume) for s in written}
+        writers = {s.name: SeriesWriter(directory / f"{s.name}.pvd", resume=resume)
+                   for s in written}
         keep = self.checkpoint_path
         restart, done = self._resume_point(directory, writers) if resume else (0, 0)
         if restart == 0:

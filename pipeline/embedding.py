@@ -23,11 +23,11 @@ from filters.elastic.topology import Embedding
 from filters.simulation import Frame, OutputSpec
 
 from .algorithm import Algorithm, vtk_messages
-from .convert import dataset_time, frame_to_vtk
-from .xmlcheck import XML_SUFFIXES, UnsafeFileError, check_vtk_xml
+from .io.convert import dataset_time, frame_to_vtk
+from .io.xmlcheck import XML_SUFFIXES, UnsafeFileError, check_vtk_xml
 
 if TYPE_CHECKING:
-    from typing import Sequence
+    from collections.abc import Sequence
 
 __all__ = ["EmbeddedSurface", "read_closed_mesh"]
 

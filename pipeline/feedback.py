@@ -16,9 +16,9 @@ from __future__ import annotations
 import contextlib
 import sys
 import warnings
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Sequence
 
 __all__ = ["BlobflowWarning", "CompileNotice", "compile_notice", "stage_progress"]
 

@@ -22,7 +22,8 @@ from .assignments import Parameter, parse_assignments
 from .compose import Flow
 
 if TYPE_CHECKING:
-    from typing import Any, Callable, Iterable
+    from collections.abc import Callable, Iterable
+    from typing import Any
 
 __all__ = ["Scene", "Parameter", "available_scenes", "load_scene", "ENTRY_POINT_GROUP"]
 
@@ -118,13 +119,15 @@ class Scene:
             )
         flow = self.build_function(**parameters)
         if not isinstance(flow, Flow):
-            raise TypeError(f"scene {self.name!r}: build() must return a Flow, got {type(flow).__name__}")
+            raise TypeError(f"scene {self.name!r}: build() must return a Flow, "
+                            f"got {type(flow).__name__}")
         return flow
 
 
 def available_scenes() -> dict[str, object]:
     """Entry points of the installed scenes, by name (loaded lazily)."""
-    return {ep.name: ep for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name)}
+    found = sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name)
+    return {ep.name: ep for ep in found}
 
 
 def load_scene(name: str) -> Scene:

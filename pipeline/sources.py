@@ -13,7 +13,7 @@ from filters.simulation import TIME_DECIMALS, Simulation, State, frame_times
 from filters.validation import check_bool, check_choice, check_int
 
 from .algorithm import Algorithm
-from .convert import frame_to_vtk
+from .io.convert import frame_to_vtk
 
 __all__ = ["SimulationSource"]
 
@@ -30,10 +30,10 @@ class SimulationSource(Algorithm):
     time, it restores the latest cached frame state at or before that time instead of simulating
     again from 0.  Asking twice for the same time does not step.
 
-    Its outputs keep their particles in one order, by ``id`` (:func:`pipeline.convert.id_order`),
+    Its outputs keep their particles in one order, by ``id`` (:func:`pipeline.io.convert.id_order`),
     whatever order the simulation keeps them in, and carry what a viewer needs, not the
     simulation's state: a :class:`Flow` keeps a checkpoint beside the series it writes
-    (:mod:`pipeline.checkpoint`).
+    (:mod:`pipeline.io.checkpoint`).
 
     Parameters
     ----------
@@ -66,7 +66,8 @@ class SimulationSource(Algorithm):
                  frames: int | None = None, *, cache_size: int = 16, dataset: str | None = None,
                  checkpoint: bool = True):
         if not isinstance(simulation, Simulation):
-            raise TypeError(f"simulation must be a filters.Simulation, got {type(simulation).__name__}")
+            raise TypeError(f"simulation must be a filters.Simulation, "
+                            f"got {type(simulation).__name__}")
         spec = simulation.output_spec
         dataset = check_choice("dataset", dataset or spec.dataset, tuple(_VTK_TYPES))
         Algorithm.__init__(self, nInputPorts=0, nOutputPorts=1, outputType=_VTK_TYPES[dataset])
@@ -179,7 +180,7 @@ class SimulationSource(Algorithm):
         if sim.state.time < t:
             sim.advance_to(t)
 
-    def current_dataset(self):
+    def current_dataset(self) -> vtkDataObject:
         """The simulation's current frame as a VTK dataset, its particles in ``id`` order."""
         sim = self.simulation
         return frame_to_vtk(sim.frame(), sim.output_spec, self.dataset)

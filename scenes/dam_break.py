@@ -1,5 +1,5 @@
-"""``dam_break``: a water column collapsing in a closed tank (DFSPH by default, Bender & Koschier 2017;
-or WCSPH, Becker & Teschner 2007).
+"""``dam_break``: a water column collapsing in a closed tank (DFSPH by default, Bender &
+Koschier 2017; or WCSPH, Becker & Teschner 2007).
 
 The classic experiment of Martin & Moyce (1952): a column of width ``a`` and height ``2 a`` stands
 against the left wall of a tank ``>= 4 a`` long; the front runs along the floor, hits the far

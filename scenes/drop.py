@@ -1,5 +1,5 @@
-"""``drop``: a sphere of liquid falling into a resting pool (DFSPH by default, Bender & Koschier 2017;
-or WCSPH, Becker & Teschner 2007).
+"""``drop``: a sphere of liquid falling into a resting pool (DFSPH by default, Bender &
+Koschier 2017; or WCSPH, Becker & Teschner 2007).
 
 The particle series carries ``velocity`` (m/s), ``density`` (kg/m^3), ``pressure`` (Pa) and
 ``id`` (the pool's particles first, then the drop's).

@@ -10,8 +10,8 @@ from filters.geometry import Plane
 from filters.validation import check_choice, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.embedding import EmbeddedSurface, read_closed_mesh
+from pipeline.io.volume_mesh import read_volume_mesh
 from pipeline.scene import Scene
-from pipeline.volume_mesh import read_volume_mesh
 
 SCENE_FPS = 30.0
 SCENE_DURATION = 2.0

@@ -5,7 +5,7 @@ from __future__ import annotations
 from filters.validation import check_bool, check_int
 from pipeline import Flow
 from pipeline.surface import surface_stages
-from pipeline.surface_options import liquid_surface_options
+from pipeline.surface.options import liquid_surface_options
 
 
 def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
@@ -13,12 +13,13 @@ def add_liquid_surface(flow: Flow, *, spacing: float, tank_lo, tank_hi,
                        anisotropic: bool = True) -> None:
     """Add a ``surface`` output: SPH-field splatting of the particles, contoured and smoothed.
 
-    :func:`pipeline.surface_options.liquid_surface_options`: the particle radius is half the
+    :func:`pipeline.surface.options.liquid_surface_options`: the particle radius is half the
     spacing; the particles near the tank's walls are mirrored across them and the surface is
-    cut exactly at its inner box (:class:`pipeline.liquid.ClipBox`); every closed piece of it
-    encloses its particles' volume (:class:`pipeline.liquid.VolumeCorrection`); the other
-    stages are those of :data:`pipeline.surface_options.SURFACE_DEFAULTS` (``blobflow surface``
-    rebuilds the same surface from the particle series and the run record).
+    cut exactly at its inner box (:class:`pipeline.surface.liquid.ClipBox`); every closed piece
+    of it encloses its particles' volume (:class:`pipeline.surface.liquid.VolumeCorrection`);
+    the other stages are those of :data:`pipeline.surface.options.SURFACE_DEFAULTS`
+    (``blobflow surface`` rebuilds the same surface from the particle series and the run
+    record).
 
     Parameters
     ----------

@@ -51,7 +51,7 @@ def _kill():
 
 def _main(out, kind, where, index):
     import pipeline.compose as compose
-    from pipeline.series import SeriesWriter
+    from pipeline.io.series import SeriesWriter
 
     flow, every = build(kind)
     on_frame = None

@@ -10,7 +10,7 @@ from pathlib import Path
 from vtkmodules.vtkIOXML import (vtkXMLImageDataWriter, vtkXMLPolyDataWriter,
                                  vtkXMLUnstructuredGridWriter)
 
-from pipeline.series import read_frame
+from pipeline.io.series import read_frame
 
 _WRITERS = {".vtp": vtkXMLPolyDataWriter, ".vtu": vtkXMLUnstructuredGridWriter,
             ".vti": vtkXMLImageDataWriter}
@@ -48,7 +48,8 @@ def huge_points(path) -> Path:
     """``NumberOfPoints`` of the (first) piece declared 10^13."""
     path = Path(path)
     data = path.read_bytes()
-    data, n = re.subn(rb'NumberOfPoints="\d+"', b'NumberOfPoints="10000000000000"', data, 1)
+    data, n = re.subn(rb'NumberOfPoints="\d+"', b'NumberOfPoints="10000000000000"', data,
+                      count=1)
     assert n == 1
     path.write_bytes(data)
     return path

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 from vtkmodules.util import numpy_support
 
-from pipeline.series import read_frame, write_frame
+from pipeline.io.series import read_frame, write_frame
 
 
 def lift_task(in_file, out_file, time, options):

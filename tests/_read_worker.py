@@ -10,7 +10,7 @@ import sys
 import numpy as np
 from vtkmodules.util import numpy_support
 
-from pipeline.series import SeriesError, read_frame
+from pipeline.io.series import SeriesError, read_frame
 
 
 def _arrays(data):

@@ -14,7 +14,8 @@ def test_script_example_runs(tmp_path, monkeypatch):
     assert len(code.strip().splitlines()) <= 12
     monkeypatch.chdir(tmp_path)
     namespace = {}
-    exec(compile(code.replace('flow.run("outputs/script")', 'flow.run("outputs/script", progress=False)'),
+    exec(compile(code.replace('flow.run("outputs/script")',
+                              'flow.run("outputs/script", progress=False)'),
                  "README", "exec"), namespace)
     times, frames = read_series(tmp_path / "outputs/script/height.pvd")
     assert len(times) == 31 and frames[0].n_points == 500
@@ -23,7 +24,7 @@ def test_script_example_runs(tmp_path, monkeypatch):
 
 def test_quickstart_test_command_is_what_ci_runs():
     block = re.search(r"## Quickstart.*?```bash\n(.*?)```", README, re.S).group(1)
-    lines = [l for l in block.splitlines() if l.strip()]
+    lines = [line for line in block.splitlines() if line.strip()]
     assert len(lines) == 2
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
     assert lines[1] in ci

@@ -35,12 +35,16 @@ Array layouts (float64, C-contiguous):
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
 from ..geometry import Box, Complement, Plane, Shape, Sphere
 from ..validation import check_points, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["Colliders", "union_sdf", "primitive_sdf", "resolve_particle", "resolve_contacts"]
 
@@ -239,7 +243,7 @@ class Colliders:
     >>> c = c.add(Sphere((0, 0, 0.5), 0.3))
     """
 
-    def __init__(self, *, restitution=0.0, friction=0.3, thickness=0.0):
+    def __init__(self, *, restitution: float = 0.0, friction: float = 0.3, thickness: float = 0.0):
         self.restitution = check_range("restitution", restitution, 0.0, 1.0)
         self.friction = check_range("friction", friction, 0.0)
         self.thickness = check_range("thickness", thickness, 0.0)
@@ -254,7 +258,8 @@ class Colliders:
         mu = self.friction if friction is None else check_range("friction", friction, 0.0)
         return e, mu
 
-    def add(self, shape: Shape, *, restitution=None, friction=None) -> "Colliders":
+    def add(self, shape: Shape, *, restitution: float | None = None,
+            friction: float | None = None) -> "Colliders":
         """Add an obstacle: a :class:`filters.geometry.Plane` (the half-space behind it), a
         :class:`~filters.geometry.Sphere` or :class:`~filters.geometry.Box` (solid), or a
         container ``~Sphere(...)`` / ``~Box(...)`` (particles stay inside).
@@ -296,14 +301,15 @@ class Colliders:
     def __len__(self):
         return self.planes.shape[0] + self.spheres.shape[0] + self.boxes.shape[0]
 
-    def sdf(self, points):
+    def sdf(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Signed distance (M,) (m) and outward normal (M, 3) of the union at ``points``."""
         pts = check_points("points", points)
         out = np.empty((pts.shape[0], 4))
         _sdf_many(pts, self.planes, self.spheres, self.boxes, out)
         return out[:, 0].copy(), out[:, 1:].copy()
 
-    def resolve(self, positions, velocities, skip=None):
+    def resolve(self, positions: np.ndarray, velocities: np.ndarray,
+                skip: np.ndarray | None = None) -> int:
         """Project penetrating particles out and apply restitution and friction, in place.
 
         Parameters

@@ -49,6 +49,7 @@ terms, and for particles (``W = I``) it is the exact Gauss-Newton Hessian.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,6 +58,9 @@ from ..validation import check_range
 from .contact import Colliders
 from .contact_kernels import (barrier, barrier_energies, contact_clearance, contact_terms,
                               feasible_steps, lag_normal_forces, scatter_to_particles)
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["ContactModel", "DEFAULT_STIFFNESS_RATIO", "DEFAULT_SLIP_VELOCITY", "barrier"]
 
@@ -135,10 +139,11 @@ class ContactModel:
     #: A Newton step may bring a point at most this fraction closer to a collider than it was.
     KEEP = 0.2
 
-    def __init__(self, colliders, masses, reference_step, *, embedding=None, pinned=None,
-                 stiffness_ratio=DEFAULT_STIFFNESS_RATIO, stiffness=None,
-                 slip_velocity=DEFAULT_SLIP_VELOCITY, elastic_diagonal=None,
-                 damping_ratio=1.0):
+    def __init__(self, colliders: Colliders, masses: ArrayLike, reference_step: float, *,
+                 embedding: tuple[np.ndarray, np.ndarray] | None = None,
+                 pinned: ArrayLike | None = None, stiffness_ratio: float = DEFAULT_STIFFNESS_RATIO,
+                 stiffness: float | None = None, slip_velocity: float = DEFAULT_SLIP_VELOCITY,
+                 elastic_diagonal: ArrayLike | None = None, damping_ratio: float = 1.0):
         if not isinstance(colliders, Colliders):
             raise TypeError(f"colliders must be a Colliders object, got "
                             f"{type(colliders).__name__}")
@@ -215,7 +220,7 @@ class ContactModel:
         c = self.colliders
         return self.active, c.planes, c.spheres, c.boxes
 
-    def begin_step(self, x0, h):
+    def begin_step(self, x0: np.ndarray, h: float) -> int:
         """Lag the normal forces and tangent planes at the start positions ``x0`` (N, 3) for a
         step of ``h`` (s); returns the number of contact points within ``dhat``.
 
@@ -233,7 +238,7 @@ class ContactModel:
                                                   self.damping_ratio, self._lagged))
         return self.touching
 
-    def check_outside(self, x):
+    def check_outside(self, x: np.ndarray) -> None:
         """Raise ``ValueError`` if a contact point at positions ``x`` is on or inside a
         collider (a state the barrier cannot hold)."""
         clearance = np.where(self.active, self.clearance(x), np.inf)
@@ -242,7 +247,7 @@ class ContactModel:
             raise ValueError(f"positions: contact point {j} is {-clearance[j]:.3g} m inside a "
                              "collider; elastic objects must start outside their colliders")
 
-    def value(self, x0, dx):
+    def value(self, x0: np.ndarray, dx: np.ndarray) -> float:
         """Barrier plus friction (J) of the step ``dx`` (N, 3) from ``x0``; ``inf`` when a
         point would be on or inside a collider."""
         with _threads(len(self)):
@@ -251,7 +256,8 @@ class ContactModel:
                           self._grad_p[:0], self._hess_p[:0], self._energies)
         return float(self._energies.sum())
 
-    def derivatives(self, x0, dx, grad, blocks):
+    def derivatives(self, x0: np.ndarray, dx: np.ndarray, grad: np.ndarray,
+                    blocks: np.ndarray) -> float:
         """Barrier plus friction (J) of the step ``dx``; adds its gradient to ``grad`` (N, 3)
         and writes the particles' Hessian blocks (a bound from above for embedded points) into
         ``blocks`` (N, 3, 3)."""
@@ -262,7 +268,8 @@ class ContactModel:
         scatter_to_particles(self.nodes, self.weights, self._grad_p, self._hess_p, grad, blocks)
         return float(self._energies.sum())
 
-    def point_hessians(self):
+    def point_hessians(self) -> tuple[NDArray[np.int64], NDArray[np.float64],
+                                      NDArray[np.float64]] | None:
         """``(nodes (M, K), weights (M, K), hessians (M, 6))`` of the last
         :meth:`derivatives` call, for the exact blocks ``W^T H W`` of embedded points
         (:mod:`filters.linalg.coupling`); None for contact points that are the particles
@@ -271,7 +278,7 @@ class ContactModel:
             return None
         return self.nodes, self.weights, self._hess_p
 
-    def max_step(self, x0, dx, d):
+    def max_step(self, x0: np.ndarray, dx: np.ndarray, d: np.ndarray) -> float:
         """Largest fraction in [0, 1] of the step ``d`` (N, 3) from ``x0 + dx`` that brings no
         contact point closer to a collider than :attr:`KEEP` times its distance (the
         feasibility filter of the line search, Li et al. 2020)."""
@@ -280,7 +287,7 @@ class ContactModel:
                            self._steps)
         return float(self._steps.min(initial=1.0))
 
-    def particle_steps(self, x0, dx, d):
+    def particle_steps(self, x0: np.ndarray, dx: np.ndarray, d: np.ndarray) -> NDArray[np.float64]:
         """Per particle, a fraction in [0, 1] of ``d`` (N, 3) that keeps its contact points
         feasible when each particle moves by its own fraction (the smallest over a particle's
         points; one common fraction for embedded points, whose particles move together)."""
@@ -291,14 +298,14 @@ class ContactModel:
             return np.full(self.n_particles, float(self._steps.min(initial=1.0)))
         return self._steps.copy()
 
-    def energy(self, x):
+    def energy(self, x: np.ndarray) -> float:
         """Barrier (contact) energy (J) at positions ``x`` (N, 3)."""
         with _threads(len(self)):
             barrier_energies(x, self.nodes, self.weights, *self._args(), self.dhat, self.kappa,
                              self._energies)
         return float(self._energies.sum())
 
-    def clearance(self, x):
+    def clearance(self, x: np.ndarray) -> NDArray[np.float64]:
         """Signed distance (M,) (m) of every contact point to the colliders at positions ``x``
         (negative inside an obstacle)."""
         out = np.empty(self.nodes.shape[0])
@@ -307,6 +314,6 @@ class ContactModel:
             contact_clearance(x, self.nodes, self.weights, c.planes, c.spheres, c.boxes, out)
         return out
 
-    def points(self, x):
+    def points(self, x: np.ndarray) -> NDArray[np.float64]:
         """Contact points (M, 3) (m) for particle positions ``x`` (N, 3)."""
         return np.einsum("mk,mkj->mj", self.weights, x[self.nodes])

@@ -23,9 +23,13 @@ planes, done by splitting into tetrahedra (one, or a prism cut into three, per p
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["tet_fractions"]
 
@@ -202,7 +206,9 @@ def _fractions(x, tets, cell_ij, pts, tris, col_ptr, col_tris, tri_zmax, out):
         out[e] = min(max(acc / full, 0.0), 1.0) if full > 0.0 else 0.0
 
 
-def tet_fractions(positions, tets, points, triangles, origin, spacing, dims):
+def tet_fractions(positions: np.ndarray, tets: np.ndarray, points: np.ndarray,
+                  triangles: np.ndarray, origin: np.ndarray, spacing: float,
+                  dims: np.ndarray) -> NDArray[np.float64]:
     """Fraction (0-1) of every lattice tetrahedron inside a closed triangle surface, exactly.
 
     Parameters

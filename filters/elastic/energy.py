@@ -9,8 +9,13 @@ drag, friction, inelastic contacts and the dissipation of the time integrator.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..linalg.protocol import ImplicitSystem
+    from .contact_model import ContactModel
 
 __all__ = ["EnergyAccount", "energy_account", "ENERGY_FIELDS"]
 
@@ -51,7 +56,8 @@ class EnergyAccount:
         return {name: np.array([value]) for name, value in zip(ENERGY_FIELDS, values)}
 
 
-def energy_account(system, positions, velocities, contact=None) -> EnergyAccount:
+def energy_account(system: ImplicitSystem, positions: np.ndarray, velocities: np.ndarray,
+                   contact: ContactModel | None = None) -> EnergyAccount:
     """The energy account of a system of particles.
 
     Parameters

@@ -20,6 +20,8 @@ follows :meth:`FEMSystem.elastic_diagonal`.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 
 import numpy as np
 
@@ -30,6 +32,10 @@ from .fem_kernels import (CHUNK, assemble_stiffness, color_chunks, csr_matvec, e
                           element_forces, element_hessians, finish_system, gather_nodes,
                           serial_sum)
 from .materials import MATERIALS, lame_parameters, material_parameters
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+    from scipy.sparse import csr_matrix
 
 __all__ = [
     "MATERIALS",
@@ -59,7 +65,8 @@ def _check_tets(tets, n_points):
     return tets
 
 
-def tet_geometry(rest_positions, tets):
+def tet_geometry(rest_positions: ArrayLike,
+                 tets: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Shape-function gradients and rest volumes of tetrahedra.
 
     Parameters
@@ -109,8 +116,9 @@ def _prep(positions, rest_positions, tets, youngs_modulus, poisson_ratio, materi
     return x, np.ascontiguousarray(tets, dtype=np.int64), grads, vols, code, mu, lam
 
 
-def tet_energies(positions, rest_positions, tets, *, youngs_modulus, poisson_ratio,
-                 material="neo_hookean"):
+def tet_energies(positions: ArrayLike, rest_positions: ArrayLike, tets: ArrayLike, *,
+                 youngs_modulus: float, poisson_ratio: float,
+                 material: str = "neo_hookean") -> NDArray[np.float64]:
     """Elastic energy (J) of every tetrahedron.
 
     Parameters
@@ -139,8 +147,9 @@ def tet_energies(positions, rest_positions, tets, *, youngs_modulus, poisson_rat
     return out
 
 
-def tet_forces(positions, rest_positions, tets, *, youngs_modulus, poisson_ratio,
-               material="neo_hookean"):
+def tet_forces(positions: ArrayLike, rest_positions: ArrayLike, tets: ArrayLike, *,
+               youngs_modulus: float, poisson_ratio: float,
+               material: str = "neo_hookean") -> NDArray[np.float64]:
     """Elastic forces (N) on the four nodes of every tetrahedron, ``-W P(F) g_k``, (T, 4, 3).
 
     Arguments as in :func:`tet_energies`; the forces are minus the gradient of its energies.
@@ -152,8 +161,9 @@ def tet_forces(positions, rest_positions, tets, *, youngs_modulus, poisson_ratio
     return forces
 
 
-def tet_hessians(positions, rest_positions, tets, *, youngs_modulus, poisson_ratio,
-                 material="neo_hookean", definite=True):
+def tet_hessians(positions: ArrayLike, rest_positions: ArrayLike, tets: ArrayLike, *,
+                 youngs_modulus: float, poisson_ratio: float, material: str = "neo_hookean",
+                 definite: bool = True) -> NDArray[np.float64]:
     """Stiffness matrices ``d^2 (W Psi) / dx^2`` (N/m) of every tetrahedron, (T, 12, 12).
 
     Index ``3 k + a`` is node ``k`` (of ``tets[t]``), axis ``a``.  Arguments as in
@@ -210,9 +220,11 @@ class FEMSystem(ImplicitSystem):
     (``contact=``, :class:`filters.elastic.contact_model.ContactModel`).
     """
 
-    def __init__(self, rest_positions, tets, masses, *, youngs_modulus, poisson_ratio,
-                 material="neo_hookean", mass_damping=0.0, stiffness_damping=0.0,
-                 gravity=(0.0, 0.0, -9.81), pinned=None, fractions=None):
+    def __init__(self, rest_positions: ArrayLike, tets: ArrayLike, masses: ArrayLike, *,
+                 youngs_modulus: float, poisson_ratio: float, material: str = "neo_hookean",
+                 mass_damping: float = 0.0, stiffness_damping: float = 0.0,
+                 gravity: ArrayLike = (0.0, 0.0, -9.81), pinned: ArrayLike | None = None,
+                 fractions: ArrayLike | None = None):
         rest = check_points("rest_positions", rest_positions)
         n = rest.shape[0]
         masses = np.ascontiguousarray(masses, dtype=np.float64)
@@ -281,15 +293,15 @@ class FEMSystem(ImplicitSystem):
         self._cache_x = x.copy()
         return self._cache_force, self._cache_energy
 
-    def elastic_energy(self, x) -> float:
+    def elastic_energy(self, x: np.ndarray) -> float:
         """Elastic (strain) energy (J) at ``x``."""
         return self._elastic(x)[1]
 
-    def elastic_forces(self, x) -> np.ndarray:
+    def elastic_forces(self, x: np.ndarray) -> np.ndarray:
         """Elastic forces (N) at ``x``, (N, 3) (a copy)."""
         return self._elastic(x)[0].copy()
 
-    def energy_density(self, x) -> np.ndarray:
+    def energy_density(self, x: np.ndarray) -> np.ndarray:
         """Strain energy density ``Psi(F)`` (J/m^3) of every tetrahedron at ``x``, (T,)."""
         x = np.ascontiguousarray(x, dtype=np.float64)
         out = np.empty(self.n_tets)
@@ -298,7 +310,7 @@ class FEMSystem(ImplicitSystem):
                              self.mu, self.lam, out)
         return out / self.volumes
 
-    def volume(self, x) -> float:
+    def volume(self, x: np.ndarray) -> float:
         """Signed volume (m^3) of the solid at ``x``: every tetrahedron's times its volume
         fraction."""
         t = self.tets
@@ -328,7 +340,7 @@ class FEMSystem(ImplicitSystem):
         return p["damping"]
 
     # -- ImplicitSystem ----------------------------------------------------------------------
-    def forces(self, x, v, out=None):
+    def forces(self, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Total force (N): elastic, gravity and damping, (N, 3)."""
         f = np.empty_like(x) if out is None else out
         f[...] = self._elastic(x)[0]
@@ -336,14 +348,15 @@ class FEMSystem(ImplicitSystem):
         f += self.damping_forces(x, v)
         return f
 
-    def conservative_forces(self, x, out=None):
+    def conservative_forces(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Elastic and gravity forces (N), (N, 3); contacts are the integrators'."""
         f = np.empty_like(x) if out is None else out
         f[...] = self._elastic(x)[0]
         f += self.masses[:, None] * self.gravity[None, :]
         return f
 
-    def damping_forces(self, xdir, v, out=None):
+    def damping_forces(self, xdir: np.ndarray, v: np.ndarray,
+                       out: np.ndarray | None = None) -> np.ndarray:
         """Rayleigh damping ``-(alpha M + beta K(xdir)) v`` (N), linear in ``v``, (N, 3)."""
         f = np.empty_like(v) if out is None else out
         f[...] = -self.mass_damping * self.masses[:, None] * v
@@ -357,19 +370,19 @@ class FEMSystem(ImplicitSystem):
             f -= self.stiffness_damping * kv
         return f
 
-    def gravitational_energy(self, x) -> float:
+    def gravitational_energy(self, x: np.ndarray) -> float:
         """``-sum m g . x`` (J)."""
         return float(-np.einsum("i,ij,j->", self.masses, x, self.gravity))
 
-    def potential_energy(self, x):
+    def potential_energy(self, x: np.ndarray) -> float:
         """Elastic plus gravitational energy (J)."""
         return self.elastic_energy(x) + self.gravitational_energy(x)
 
-    def kinetic_energy(self, v):
+    def kinetic_energy(self, v: np.ndarray) -> float:
         """Kinetic energy (J)."""
         return float(0.5 * np.einsum("i,ij,ij->", self.masses, v, v))
 
-    def energy(self, x, v):
+    def energy(self, x: np.ndarray, v: np.ndarray) -> float:
         """Kinetic plus potential energy (J) (contacts are the contact model's)."""
         return self.kinetic_energy(v) + self.potential_energy(x)
 
@@ -424,7 +437,7 @@ class FEMSystem(ImplicitSystem):
             stiffness=np.zeros(9 * keys.size), damping=np.zeros(9 * keys.size),
             diag=np.zeros((n, 3, 3)))
 
-    def system_matrix(self, x, xdir, h):
+    def system_matrix(self, x: np.ndarray, xdir: np.ndarray, h: float) -> csr_matrix:
         """Assemble ``H = M (1/h^2 + alpha/h) + K(x) + beta K(xdir)/h`` in place into the
         fixed-pattern CSR matrix.
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,13 @@ from .fem import FEMSystem, tet_geometry
 from .mass_spring import MassSpringSimulation, check_stepping
 from .materials import material_parameters
 from .tetmesh import TetMesh, tets_from_arrays, tets_from_mesh
+
+if TYPE_CHECKING:
+    from typing import Any
+
+    from numpy.typing import ArrayLike
+
+    from .contact import Colliders
 
 __all__ = ["FEMModel", "FEMSimulation", "lumped_masses", "VTK_TETRA"]
 
@@ -149,12 +157,17 @@ class FEMSimulation(MassSpringSimulation):
     instability_hint = ("the elements are too stiff for this time step: use "
                         "scheme='backward_euler' or more substeps")
 
-    def __init__(self, mesh, velocities=None, *, youngs_modulus=1e4, poisson_ratio=0.45,
-                 density=1000.0, material="neo_hookean", mass_damping=0.0, stiffness_damping=0.0,
-                 gravity=(0.0, 0.0, -9.81), pinned=None, scheme="backward_euler", solver="auto",
-                 colliders=None, max_dt=1.0 / 60.0, substeps=1, newton_tol=1e-3, max_newton=10,
-                 max_speed=100.0, contact_stiffness=None, contact_ratio=DEFAULT_STIFFNESS_RATIO,
-                 slip_velocity=DEFAULT_SLIP_VELOCITY):
+    def __init__(self, mesh: TetMesh, velocities: ArrayLike | None = None, *,
+                 youngs_modulus: float = 1e4, poisson_ratio: float = 0.45, density: float = 1000.0,
+                 material: str = "neo_hookean", mass_damping: float = 0.0,
+                 stiffness_damping: float = 0.0, gravity: ArrayLike = (0.0, 0.0, -9.81),
+                 pinned: ArrayLike | None = None, scheme: str = "backward_euler",
+                 solver: str = "auto", colliders: Colliders | None = None,
+                 max_dt: float = 1.0 / 60.0, substeps: int = 1, newton_tol: float = 1e-3,
+                 max_newton: int = 10, max_speed: float = 100.0,
+                 contact_stiffness: float | None = None,
+                 contact_ratio: float = DEFAULT_STIFFNESS_RATIO,
+                 slip_velocity: float = DEFAULT_SLIP_VELOCITY):
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be a TetMesh, got {type(mesh).__name__}")
         material_parameters(material, youngs_modulus, poisson_ratio)  # validates all three
@@ -208,14 +221,16 @@ class FEMSimulation(MassSpringSimulation):
         self.last_info = None
 
     @classmethod
-    def from_mesh(cls, points, triangles, *, spacing, **options):
+    def from_mesh(cls, points: ArrayLike, triangles: ArrayLike, *, spacing: float,
+                  **options: Any) -> FEMSimulation:
         """A solid of the interior of a closed triangle mesh, tetrahedralised on a lattice of
         ``spacing`` (m) with the mesh embedded (:func:`filters.elastic.tetmesh.tets_from_mesh`);
         ``options`` as for the class."""
         return cls(tets_from_mesh(points, triangles, spacing=spacing), **options)
 
     @classmethod
-    def from_tets(cls, points, tets, *, name="mesh", **options):
+    def from_tets(cls, points: ArrayLike, tets: ArrayLike, *, name: str = "mesh",
+                  **options: Any) -> FEMSimulation:
         """A solid of a user's own tetrahedral mesh, as it is (:func:`filters.elastic.tetmesh.
         tets_from_arrays`: checked for flat, inverted elements and several bodies); its
         boundary faces are the surface that is drawn and touches colliders; ``options`` as for

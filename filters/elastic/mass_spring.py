@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,11 @@ from .springs import DAMPING_MODES, SpringSystem
 from .topology import (BEND, SHEAR, STRETCH, SpringTopology, cloth_from_mesh, cloth_grid,
                        hair_strands, jello_from_mesh)
 from ..validation import check_choice, check_finite_vector, check_int, check_range
+
+if TYPE_CHECKING:
+    from typing import Any
+
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "MassSpringModel",
@@ -87,8 +93,9 @@ def _per_kind(kinds, stretch, shear, bend):
 
 
 
-def check_stepping(scheme, solver, colliders, max_dt, substeps, newton_tol, max_newton,
-                   max_speed):
+def check_stepping(scheme: str, solver: str, colliders: Colliders | None, max_dt: float,
+                   substeps: int, newton_tol: float, max_newton: int,
+                   max_speed: float) -> tuple[LinearSolver, float, int, dict[str, float], float]:
     """Check the stepping parameters every elastic simulation takes.
 
     Returns
@@ -177,12 +184,17 @@ class MassSpringSimulation(Simulation):
     instability_hint = ("the spring forces are too stiff for this time step: use "
                         "scheme='backward_euler' or more substeps")
 
-    def __init__(self, topology, velocities=None, *, stretch_stiffness=1e3, shear_stiffness=None,
-                 bend_stiffness=None, damping=0.0, damping_mode="axial", drag=0.0,
-                 gravity=(0.0, 0.0, -9.81), scheme="backward_euler", solver="auto", colliders=None,
-                 max_dt=1.0 / 60.0, substeps=1, newton_tol=1e-3, max_newton=10, max_speed=100.0,
-                 contact_stiffness=None, contact_ratio=DEFAULT_STIFFNESS_RATIO,
-                 slip_velocity=DEFAULT_SLIP_VELOCITY, bend_damping=0.0):
+    def __init__(self, topology: SpringTopology, velocities: ArrayLike | None = None, *,
+                 stretch_stiffness: float = 1e3, shear_stiffness: float | None = None,
+                 bend_stiffness: float | None = None, damping: float = 0.0,
+                 damping_mode: str = "axial", drag: float = 0.0,
+                 gravity: ArrayLike = (0.0, 0.0, -9.81), scheme: str = "backward_euler",
+                 solver: str = "auto", colliders: Colliders | None = None,
+                 max_dt: float = 1.0 / 60.0, substeps: int = 1, newton_tol: float = 1e-3,
+                 max_newton: int = 10, max_speed: float = 100.0,
+                 contact_stiffness: float | None = None,
+                 contact_ratio: float = DEFAULT_STIFFNESS_RATIO,
+                 slip_velocity: float = DEFAULT_SLIP_VELOCITY, bend_damping: float = 0.0):
         if not isinstance(topology, SpringTopology):
             raise TypeError(f"topology must be a SpringTopology, got {type(topology).__name__}")
         k_stretch = check_range("stretch_stiffness", stretch_stiffness, 0.0)
@@ -318,8 +330,9 @@ class HairSimulation(MassSpringSimulation):
         Passed to :class:`MassSpringSimulation` (``bend_damping`` damps the bending).
     """
 
-    def __init__(self, roots, directions, *, segments=16, length=0.3, linear_density=1e-3,
-                 cells="polylines", clamped=False, bend_stiffness=1e-6, **options):
+    def __init__(self, roots: ArrayLike, directions: ArrayLike, *, segments: int = 16,
+                 length: float = 0.3, linear_density: float = 1e-3, cells: str = "polylines",
+                 clamped: bool = False, bend_stiffness: float = 1e-6, **options: Any):
         top = hair_strands(roots, directions, segments=segments, length=length,
                            linear_density=linear_density, cells=cells, clamped=clamped)
         bend_stiffness = check_range("bend_stiffness", bend_stiffness, 0.0)
@@ -343,15 +356,18 @@ class ClothSimulation(MassSpringSimulation):
         Passed to :class:`MassSpringSimulation`.
     """
 
-    def __init__(self, points, triangles, *, pinned=None, areal_density=0.2, **options):
+    def __init__(self, points: ArrayLike, triangles: ArrayLike, *, pinned: ArrayLike | None = None,
+                 areal_density: float = 0.2, **options: Any):
         top = cloth_from_mesh(points, triangles, areal_density=areal_density)
         if pinned is not None:
             top = top.with_pins(pinned)
         super().__init__(top, **options)
 
     @classmethod
-    def grid(cls, nx, ny, *, size=(1.0, 1.0), origin=(0.0, 0.0, 0.0), plane="xy", pinned=None,
-             areal_density=0.2, **options):
+    def grid(cls, nx: int, ny: int, *, size: ArrayLike = (1.0, 1.0),
+             origin: ArrayLike = (0.0, 0.0, 0.0), plane: str = "xy",
+             pinned: ArrayLike | None = None, areal_density: float = 0.2,
+             **options: Any) -> ClothSimulation:
         """A rectangular cloth with structural, shear and bend springs
         (see :func:`filters.elastic.topology.cloth_grid`); particle ``i + nx * j``."""
         top = cloth_grid(nx, ny, size=size, origin=origin, plane=plane,
@@ -381,7 +397,8 @@ class JelloSimulation(MassSpringSimulation):
         diagonals; the default bend stiffness is unused: the lattice has no bend springs).
     """
 
-    def __init__(self, points, triangles, *, spacing, density=1000.0, **options):
+    def __init__(self, points: ArrayLike, triangles: ArrayLike, *, spacing: float,
+                 density: float = 1000.0, **options: Any):
         top = jello_from_mesh(points, triangles, spacing=spacing, density=density)
         super().__init__(top, **options)
 

@@ -46,12 +46,16 @@ array-level API.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from ..linalg.eigen3 import svd3, sym_project_psd3
 from ..validation import check_choice, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = [
     "COROTATED",
@@ -73,7 +77,7 @@ MATERIALS = ("corotated", "neo_hookean")
 _SQRT_HALF = math.sqrt(0.5)
 
 
-def lame_parameters(youngs_modulus, poisson_ratio):
+def lame_parameters(youngs_modulus: float, poisson_ratio: float) -> NDArray[np.float64]:
     """Lamé constants ``(mu, lambda)`` (Pa) of linear elasticity from ``E`` (Pa) and ``nu``.
 
     ``mu = E / (2 (1 + nu))``, ``lambda = E nu / ((1 + nu)(1 - 2 nu))``.
@@ -94,7 +98,8 @@ def lame_parameters(youngs_modulus, poisson_ratio):
     return e / (2.0 * (1.0 + nu)), e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
 
 
-def material_parameters(material, youngs_modulus, poisson_ratio):
+def material_parameters(material: str, youngs_modulus: float,
+                        poisson_ratio: float) -> tuple[int, float, float]:
     """Material code and the ``(mu, lambda)`` the energy uses, for ``E`` and ``nu``.
 
     The corotated material uses the Lamé constants; the stable Neo-Hookean one the
@@ -115,7 +120,7 @@ def material_parameters(material, youngs_modulus, poisson_ratio):
     return NEO_HOOKEAN, 4.0 / 3.0 * mu_l, lam_l + 5.0 / 6.0 * mu_l
 
 
-def new_scratch():
+def new_scratch() -> tuple[np.ndarray, ...]:
     """Scratch arrays of :func:`energy_density`, :func:`first_piola` and
     :func:`stress_derivative`: ``(u, v, m, a, q) (3, 3)`` and ``(s, w) (3,)`` float64, and
     ``modes (9, 9)``."""

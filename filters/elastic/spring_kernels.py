@@ -12,9 +12,13 @@ same bits for any number of threads.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = [
     "EPS",
@@ -277,7 +281,9 @@ def jacobian_blocks(x, v, pairs, ke, rest, c, mode, definite, with_damping_dx, j
                         jx[s, p, q] += -(c[s] / l) * (u[p] * wp + wu * pq)
 
 
-def incidence(pairs, n):
+def incidence(pairs: np.ndarray,
+              n: int) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
+                               NDArray[np.int64]]:
     """Particle -> incident springs in CSR form: (ptr (N+1,), spring (2S,), sign (2S,), other)."""
     s = pairs.shape[0]
     nodes = np.concatenate([pairs[:, 0], pairs[:, 1]])

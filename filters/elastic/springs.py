@@ -32,6 +32,8 @@ as linear springs of which some have negative stiffness (their sum is positive s
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 
 import numpy as np
 
@@ -42,6 +44,10 @@ from .spring_kernels import (assemble_system, elastic_energy,
                              elastic_energy_serial, incidence, jacobian_blocks, operator_coefficients,
                              operator_diagonal, per_spring_forces, point_energies,
                              symplectic_parallel, symplectic_serial, total_forces)
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+    from scipy.sparse import csr_matrix
 
 __all__ = [
     "DAMPING_MODES",
@@ -93,7 +99,9 @@ def _per_spring(name, value, n, low=0.0):
     return arr.copy()
 
 
-def bending_springs(triples, stiffness, damping, n_points):
+def bending_springs(triples: ArrayLike, stiffness: ArrayLike, damping: ArrayLike,
+                    n_points: int) -> tuple[NDArray[np.int64], NDArray[np.float64],
+                                            NDArray[np.float64]]:
     """The quadratic bending energy of polylines as zero-rest-length springs.
 
     For consecutive particles ``(a, b, c)`` of a polyline whose rest shape is straight with
@@ -148,7 +156,7 @@ def bending_springs(triples, stiffness, damping, n_points):
     return out, ks, cs
 
 
-def effective_stiffness(stiffness, rest_lengths):
+def effective_stiffness(stiffness: ArrayLike, rest_lengths: ArrayLike) -> NDArray[np.float64]:
     """Effective spring constants ``k_e`` (N/m): ``k / L`` for ``L > 0``, ``k`` for ``L == 0``.
 
     Parameters
@@ -181,8 +189,9 @@ def _prep(positions, velocities, springs, rest_lengths, stiffness, damping, damp
     return x, v, pairs, rest, effective_stiffness(k, rest), c, mode
 
 
-def spring_forces(positions, springs, rest_lengths, stiffness, velocities=None, damping=0.0,
-                  damping_mode="axial"):
+def spring_forces(positions: ArrayLike, springs: ArrayLike, rest_lengths: ArrayLike,
+                  stiffness: ArrayLike, velocities: ArrayLike | None = None,
+                  damping: ArrayLike = 0.0, damping_mode: str = "axial") -> NDArray[np.float64]:
     """Per-spring force on the first end of every spring.
 
     Parameters
@@ -214,7 +223,8 @@ def spring_forces(positions, springs, rest_lengths, stiffness, velocities=None, 
     return fs
 
 
-def spring_energy(positions, springs, rest_lengths, stiffness):
+def spring_energy(positions: ArrayLike, springs: ArrayLike, rest_lengths: ArrayLike,
+                  stiffness: ArrayLike) -> float:
     """Elastic energy ``sum 0.5 k_e (l - L)^2`` (J) of a set of springs (arguments as in
     :func:`spring_forces`)."""
     x, _, pairs, rest, ke, _, _ = _prep(positions, None, springs, rest_lengths, stiffness, 0.0,
@@ -222,8 +232,11 @@ def spring_energy(positions, springs, rest_lengths, stiffness):
     return float(elastic_energy(x, pairs, ke, rest))
 
 
-def spring_jacobians(positions, springs, rest_lengths, stiffness, velocities=None, damping=0.0,
-                     damping_mode="axial", *, definite=False, damping_dx=True):
+def spring_jacobians(positions: ArrayLike, springs: ArrayLike, rest_lengths: ArrayLike,
+                     stiffness: ArrayLike, velocities: ArrayLike | None = None,
+                     damping: ArrayLike = 0.0, damping_mode: str = "axial", *,
+                     definite: bool = False,
+                     damping_dx: bool = True) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Analytic Jacobians of the force on the first end of every spring.
 
     Parameters
@@ -296,9 +309,11 @@ class SpringSystem(ImplicitSystem):
     (``contact=``, :class:`filters.elastic.contact_model.ContactModel`).
     """
 
-    def __init__(self, springs, rest_lengths, stiffness, masses, *, damping=0.0,
-                 damping_mode="axial", drag=0.0, gravity=(0.0, 0.0, -9.81), pinned=None,
-                 bend_triples=None, bend_stiffness=0.0, bend_damping=0.0):
+    def __init__(self, springs: ArrayLike, rest_lengths: ArrayLike, stiffness: ArrayLike,
+                 masses: ArrayLike, *, damping: ArrayLike = 0.0, damping_mode: str = "axial",
+                 drag: float = 0.0, gravity: ArrayLike = (0.0, 0.0, -9.81),
+                 pinned: ArrayLike | None = None, bend_triples: ArrayLike | None = None,
+                 bend_stiffness: ArrayLike = 0.0, bend_damping: ArrayLike = 0.0):
         masses = np.ascontiguousarray(masses, dtype=np.float64)
         if masses.ndim != 1 or masses.size == 0:
             raise ValueError(f"masses must be a non-empty (N,) array, got shape {masses.shape}")
@@ -357,19 +372,20 @@ class SpringSystem(ImplicitSystem):
                           self.inc_spring, self.inc_sign, self.masses, gravity, drag, self._fs,
                           f)
 
-    def forces(self, x, v, out=None):
+    def forces(self, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Total force (N) on every particle: springs, damping, gravity and drag, (N, 3)."""
         f = np.empty_like(x) if out is None else out
         self._force_kernel(x, v, self.ke, self.damping, self.mode, self.gravity, self.drag, f)
         return f
 
-    def conservative_forces(self, x, out=None):
+    def conservative_forces(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Spring elastic forces plus gravity (no damping), (N, 3)."""
         f = np.empty_like(x) if out is None else out
         self._force_kernel(x, x, self.ke, self._zero_c, 1, self.gravity, 0.0, f)
         return f
 
-    def damping_forces(self, xdir, v, out=None):
+    def damping_forces(self, xdir: np.ndarray, v: np.ndarray,
+                       out: np.ndarray | None = None) -> np.ndarray:
         """Damping force (springs and drag) at velocity ``v`` with directions from ``xdir``.
 
         Linear in ``v``: it equals ``-C v`` with ``C`` the damping matrix at ``xdir``.
@@ -382,13 +398,13 @@ class SpringSystem(ImplicitSystem):
                            self.drag, f)
         return f
 
-    def elastic_energy(self, x):
+    def elastic_energy(self, x: np.ndarray) -> float:
         """Elastic energy (J) of the springs (and bending) at ``x``."""
         if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS:
             return float(elastic_energy_serial(x, self.pairs, self.ke, self.rest))
         return float(elastic_energy(x, self.pairs, self.ke, self.rest))
 
-    def elastic_diagonal(self):
+    def elastic_diagonal(self) -> NDArray[np.float64]:
         """Each particle's elastic stiffness (N/m): the sum of ``k_e`` over its springs (the
         diagonal of ``-df/dx`` for springs at rest length), (N,)."""
         k = np.zeros(self.n_points)
@@ -396,12 +412,12 @@ class SpringSystem(ImplicitSystem):
         np.add.at(k, self.pairs[:, 1], self.ke)
         return k
 
-    def gravitational_energy(self, x):
+    def gravitational_energy(self, x: np.ndarray) -> float:
         """Gravitational energy ``-sum m_i g . x_i`` (J), zero at the origin."""
         x = np.ascontiguousarray(x, dtype=np.float64)
         return float(point_energies(x, x, self.masses, self.gravity)[1])
 
-    def potential_energy(self, x):
+    def potential_energy(self, x: np.ndarray) -> float:
         """Elastic plus gravitational potential energy (J)."""
         elastic = (elastic_energy_serial(x, self.pairs, self.ke, self.rest)
                    if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS
@@ -409,16 +425,16 @@ class SpringSystem(ImplicitSystem):
         x = np.ascontiguousarray(x, dtype=np.float64)
         return float(elastic + point_energies(x, x, self.masses, self.gravity)[1])
 
-    def kinetic_energy(self, v):
+    def kinetic_energy(self, v: np.ndarray) -> float:
         """Kinetic energy (J)."""
         v = np.ascontiguousarray(v, dtype=np.float64)
         return float(point_energies(v, v, self.masses, self.gravity)[0])
 
-    def energy(self, x, v):
+    def energy(self, x: np.ndarray, v: np.ndarray) -> float:
         """Total mechanical energy (J)."""
         return self.kinetic_energy(v) + self.potential_energy(x)
 
-    def symplectic_step(self, x, v, h):
+    def symplectic_step(self, x: np.ndarray, v: np.ndarray, h: float) -> float:
         """Symplectic Euler in one fused kernel (in place); returns the largest speed (m/s).
 
         Below :data:`PARALLEL_MIN_SPRINGS_EXPLICIT` springs a serial kernel scatters the forces
@@ -473,7 +489,7 @@ class SpringSystem(ImplicitSystem):
                              jv=np.empty((self.pairs.shape[0], 3, 3)),
                              jx2=np.empty((self.pairs.shape[0], 3, 3)))
 
-    def system_matrix(self, x, xdir, h):
+    def system_matrix(self, x: np.ndarray, xdir: np.ndarray, h: float) -> csr_matrix:
         """Assemble ``H = M/h^2 + K(x) + C(xdir)/h`` in place into the fixed-pattern CSR matrix.
 
         Parameters
@@ -507,7 +523,7 @@ class SpringSystem(ImplicitSystem):
                       mat.data)
         return mat
 
-    def implicit_operator(self, x, xdir, h):
+    def implicit_operator(self, x: np.ndarray, xdir: np.ndarray, h: float) -> BlockOperator:
         """The matrix ``H`` of :meth:`system_matrix`, matrix-free: per spring the 6 entries of
         the symmetric block ``K_s + C_s / h``, per particle ``(m/h^2 + drag/h) I`` (a
         :class:`filters.linalg.BlockOperator`; a product costs ~0.1 ms instead of ~0.5 ms for

@@ -4,7 +4,12 @@ volume, and the memory a lattice node costs (shared by :mod:`filters.elastic.top
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["BYTES_PER_NODE", "check_triangles", "mesh_volume"]
 
@@ -14,7 +19,8 @@ __all__ = ["BYTES_PER_NODE", "check_triangles", "mesh_volume"]
 BYTES_PER_NODE = 2048
 
 
-def check_triangles(name, triangles, n_points, *, allow_empty=False, allow_degenerate=False):
+def check_triangles(name: str, triangles: ArrayLike, n_points: int, *, allow_empty: bool = False,
+                    allow_degenerate: bool = False) -> NDArray[np.int64]:
     """Return ``triangles`` as a (T, 3) int64 array indexing ``n_points`` points, or raise.
 
     ``allow_empty`` accepts T = 0 (an empty surface); ``allow_degenerate`` accepts triangles
@@ -36,7 +42,7 @@ def check_triangles(name, triangles, n_points, *, allow_empty=False, allow_degen
     return tris
 
 
-def mesh_volume(points, triangles):
+def mesh_volume(points: ArrayLike, triangles: ArrayLike) -> float:
     """Signed volume (m^3) enclosed by a closed triangle mesh (positive for outward normals)."""
     p = np.asarray(points, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)

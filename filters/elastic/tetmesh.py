@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,6 +42,9 @@ from .cutcells import tet_fractions
 from .surfaces import check_triangles
 from .topology import Embedding
 from .voxelize import voxelize_mesh
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["TetMesh", "box_tets", "lattice_tets", "tets_from_mesh", "tets_from_arrays",
            "tet_volumes", "OUTWARD_FACES", "MIN_FRACTION"]
@@ -73,7 +77,7 @@ class TetMesh:
     fractions: np.ndarray | None = None
 
 
-def tet_volumes(positions, tets):
+def tet_volumes(positions: np.ndarray, tets: np.ndarray) -> NDArray[np.float64]:
     """Signed volumes (T,) (m^3) ``det[x1 - x0, x2 - x0, x3 - x0] / 6`` of tetrahedra."""
     x = np.asarray(positions, dtype=np.float64)
     t = np.asarray(tets, dtype=np.int64)
@@ -83,7 +87,9 @@ def tet_volumes(positions, tets):
     return np.einsum("ij,ij->i", e1, np.cross(e2, e3)) / 6.0
 
 
-def lattice_tets(cells, origin, spacing):
+def lattice_tets(cells: np.ndarray, origin: np.ndarray,
+                 spacing: float) -> tuple[NDArray[np.float64], NDArray[np.int64],
+                                          NDArray[np.int64]]:
     """Nodes and Kuhn tetrahedra of a set of lattice cells.
 
     Parameters
@@ -121,7 +127,7 @@ def lattice_tets(cells, origin, spacing):
     return np.ascontiguousarray(positions), np.ascontiguousarray(tets), corners
 
 
-def box_tets(shape, size, origin=(0.0, 0.0, 0.0)):
+def box_tets(shape: ArrayLike, size: ArrayLike, origin: ArrayLike = (0.0, 0.0, 0.0)) -> TetMesh:
     """A box of ``nx x ny x nz`` cells, each cut into six tetrahedra.
 
     Parameters
@@ -158,7 +164,7 @@ def box_tets(shape, size, origin=(0.0, 0.0, 0.0)):
 MIN_FRACTION = 1e-3
 
 
-def tets_from_mesh(points, triangles, *, spacing):
+def tets_from_mesh(points: ArrayLike, triangles: ArrayLike, *, spacing: float) -> TetMesh:
     """Tetrahedralise the interior of a closed mesh on a lattice and embed the mesh in it.
 
     Parameters
@@ -239,7 +245,7 @@ def _mark_cut_cells(pts, tris, origin, spacing, grid):
 OUTWARD_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]], dtype=np.int64)
 
 
-def tets_from_arrays(points, tets, *, name="mesh"):
+def tets_from_arrays(points: ArrayLike, tets: ArrayLike, *, name: str = "mesh") -> TetMesh:
     """A user's tetrahedral mesh, simulated as it is: checked, and its boundary as its surface.
 
     Parameters

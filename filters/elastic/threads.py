@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 from contextlib import contextmanager
+from typing import TYPE_CHECKING
 
 import numba
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
 
 __all__ = ["serial_below"]
 
 
 @contextmanager
-def serial_below(work: int, minimum: int):
+def serial_below(work: int, minimum: int) -> Iterator[None]:
     """Run the enclosed Numba parallel kernels on one thread when ``work < minimum``.
 
     Below a few thousand items a parallel region costs more than the work it shares, and on a

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,9 @@ from ..memory import check_memory
 from ..validation import check_finite_vector, check_int, check_points, check_range
 from .surfaces import BYTES_PER_NODE, check_triangles, mesh_volume
 from .voxelize import voxelize_mesh
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "STRETCH",
@@ -69,7 +73,7 @@ class Embedding:
     triangles: np.ndarray
     rest_points: np.ndarray
 
-    def points(self, positions):
+    def points(self, positions: np.ndarray) -> NDArray[np.float64]:
         """Mesh vertices (M, 3) for lattice ``positions`` (N, 3)."""
         return np.einsum("mk,mkj->mj", self.weights, positions[self.nodes])
 
@@ -117,12 +121,12 @@ class SpringTopology:
     bend_scale: np.ndarray | None = field(default=None)
 
     @property
-    def rest_lengths(self):
+    def rest_lengths(self) -> NDArray[np.float64]:
         """Rest lengths (S,) (m) of the springs at the rest positions."""
         d = self.positions[self.springs[:, 0]] - self.positions[self.springs[:, 1]]
         return np.sqrt(np.einsum("ij,ij->i", d, d))
 
-    def with_pins(self, pinned):
+    def with_pins(self, pinned: ArrayLike) -> SpringTopology:
         """A copy with ``pinned`` (indices or an (N,) bool mask) held fixed."""
         mask = np.zeros(self.positions.shape[0], dtype=bool)
         p = np.asarray(pinned)
@@ -152,8 +156,9 @@ def _unique_pairs(pairs):
 
 
 # ---------------------------------------------------------------------------------------------
-def hair_strands(roots, directions, *, segments=16, length=0.3, linear_density=1e-3,
-                 cells="polylines", clamped=False):
+def hair_strands(roots: ArrayLike, directions: ArrayLike, *, segments: int = 16,
+                 length: float = 0.3, linear_density: float = 1e-3, cells: str = "polylines",
+                 clamped: bool = False) -> SpringTopology:
     """Straight strands of particles, roots pinned.
 
     Parameters
@@ -230,8 +235,9 @@ def hair_strands(roots, directions, *, segments=16, length=0.3, linear_density=1
                           bend_triples=triples, bend_scale=scale)
 
 
-def cloth_grid(nx, ny, *, size=(1.0, 1.0), origin=(0.0, 0.0, 0.0), plane="xy",
-               areal_density=0.2):
+def cloth_grid(nx: int, ny: int, *, size: ArrayLike = (1.0, 1.0),
+               origin: ArrayLike = (0.0, 0.0, 0.0), plane: str = "xy",
+               areal_density: float = 0.2) -> SpringTopology:
     """A rectangular cloth of ``nx`` x ``ny`` particles.
 
     Parameters
@@ -309,7 +315,8 @@ def _edges(tris):
     return directed, owner, opposite
 
 
-def cloth_from_mesh(points, triangles, *, areal_density=0.2):
+def cloth_from_mesh(points: ArrayLike, triangles: ArrayLike, *,
+                    areal_density: float = 0.2) -> SpringTopology:
     """Cloth springs from any triangle mesh.
 
     Parameters
@@ -358,7 +365,8 @@ def cloth_from_mesh(points, triangles, *, areal_density=0.2):
                           "polys", offsets, indices)
 
 
-def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
+def jello_from_mesh(points: ArrayLike, triangles: ArrayLike, *, spacing: float,
+                    density: float = 1000.0) -> SpringTopology:
     """Voxelise a closed mesh into a spring lattice and embed the mesh in it.
 
     Parameters
@@ -434,7 +442,8 @@ def jello_from_mesh(points, triangles, *, spacing, density=1000.0):
                           "polys", offsets, indices, embedding)
 
 
-def icosphere(radius=1.0, subdivisions=2, center=(0.0, 0.0, 0.0)):
+def icosphere(radius: float = 1.0, subdivisions: int = 2,
+              center: ArrayLike = (0.0, 0.0, 0.0)) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """A closed, outward-oriented triangulated sphere.
 
     Parameters

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -19,10 +20,13 @@ from ..memory import check_memory
 from ..validation import check_points, check_range
 from .surfaces import BYTES_PER_NODE, check_triangles, mesh_volume
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 __all__ = ["Voxelization", "voxelize_mesh", "check_closed_manifold"]
 
 
-def check_closed_manifold(tris, n_points):
+def check_closed_manifold(tris: np.ndarray, n_points: int) -> None:
     """Raise ValueError unless the triangles ``tris`` (T, 3) over ``n_points`` vertices form a
     closed, consistently oriented 2-manifold (every edge in exactly two triangles, once in
     each direction)."""
@@ -108,7 +112,7 @@ class Voxelization:
     volume: float
 
 
-def voxelize_mesh(points, triangles, spacing):
+def voxelize_mesh(points: ArrayLike, triangles: ArrayLike, spacing: float) -> Voxelization:
     """The cells of a cubic lattice whose centres lie inside a closed mesh, plus the cells of its
     vertices (so that every vertex can be embedded in an active cell).
 

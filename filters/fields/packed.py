@@ -11,7 +11,7 @@ would defeat Numba's on-disk cache). The classes that build them are in
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -19,6 +19,9 @@ from numba import njit, prange
 from ..noise.curl import curl_jacobian_point, curl_point
 from ..noise.fractal import DRIFT, fbm_value, fbm_value_grad
 from ..validation import check_finite, check_points
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = [
     "PackedField",
@@ -276,7 +279,8 @@ def _inputs(points, t, velocities):
         has_vel = True
     return pts, t, vel, has_vel
 
-def evaluate_packed(packed: PackedField, points, t: float = 0.0, velocities=None) -> np.ndarray:
+def evaluate_packed(packed: PackedField, points: np.ndarray, t: float = 0.0,
+                    velocities: np.ndarray | None = None) -> np.ndarray:
     """Evaluate a :class:`PackedField` at (N, 3) points (m), time ``t`` (s); returns (N, 3)."""
     pts, t, vel, has_vel = _inputs(points, t, velocities)
     out = np.empty((pts.shape[0], 3))
@@ -284,7 +288,9 @@ def evaluate_packed(packed: PackedField, points, t: float = 0.0, velocities=None
                    has_vel, t, out)
     return out
 
-def jacobian_packed(packed: PackedField, points, t: float = 0.0, velocities=None):
+def jacobian_packed(packed: PackedField, points: np.ndarray, t: float = 0.0,
+                    velocities: np.ndarray | None = None) -> tuple[NDArray[np.float64],
+                                                                   NDArray[np.float64]]:
     """Values (N, 3) and Jacobians ``d f_i / d x_j`` (N, 3, 3) of a :class:`PackedField`."""
     pts, t, vel, has_vel = _inputs(points, t, velocities)
     n = pts.shape[0]

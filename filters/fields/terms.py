@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,6 +36,11 @@ from ..noise.perlin import kernel_tables
 from ..validation import check_finite, check_finite_vector, check_int, check_points, check_range
 from .packed import (KIND_CURL, KIND_DRAG, KIND_NOISE_WIND, KIND_ROTATION, KIND_UNIFORM,
                      KIND_VORTEX, N_PARAMS, PackedField, evaluate_packed, jacobian_packed)
+
+if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "Field",
@@ -51,7 +57,8 @@ __all__ = [
 class Field:
     """Base of the field terms: evaluation, Jacobian, packing and ``+``."""
 
-    def terms(self):  # pragma: no cover - abstract
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None,
+                                      np.ndarray | None]]:  # pragma: no cover - abstract
         """Yield the packed terms: ``(kind, params (16,), tables (T, 512) or None, colliders
         (C, 8) or None)``."""
         raise NotImplementedError
@@ -94,7 +101,8 @@ class Field:
             object.__setattr__(self, "_packed_cache", cached)
         return cached
 
-    def evaluate(self, points, t: float = 0.0, velocities=None) -> np.ndarray:
+    def evaluate(self, points: ArrayLike, t: float = 0.0,
+                 velocities: ArrayLike | None = None) -> np.ndarray:
         """Field value at ``points`` (N, 3) (m), time ``t`` (s).
 
         Parameters
@@ -115,7 +123,9 @@ class Field:
 
     __call__ = evaluate
 
-    def jacobian(self, points, t: float = 0.0, velocities=None):
+    def jacobian(self, points: ArrayLike, t: float = 0.0,
+                 velocities: ArrayLike | None = None) -> tuple[NDArray[np.float64],
+                                                               NDArray[np.float64]]:
         """Values (N, 3) and spatial Jacobians ``d f_i / d x_j`` (N, 3, 3) (1/s for velocities)."""
         return jacobian_packed(self.packed, points, t, velocities)
 
@@ -149,7 +159,7 @@ class FieldSum(Field):
     def __post_init__(self):
         object.__setattr__(self, "fields", tuple(_flatten(self.fields)))
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         for f in self.fields:
             yield from f.terms()
 
@@ -172,7 +182,7 @@ class Uniform(Field):
     def __post_init__(self):
         object.__setattr__(self, "vector", tuple(check_finite_vector("vector", self.vector, 3)))
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         yield KIND_UNIFORM, _row(*self.vector), None, None
 
 @dataclass(frozen=True, eq=False)
@@ -185,7 +195,7 @@ class Gravity(Field):
         object.__setattr__(self, "acceleration",
                            tuple(check_finite_vector("acceleration", self.acceleration, 3)))
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         yield KIND_UNIFORM, _row(*self.acceleration), None, None
 
 @dataclass(frozen=True, eq=False)
@@ -209,7 +219,7 @@ class Drag(Field):
         object.__setattr__(self, "air_velocity",
                            tuple(check_finite_vector("air_velocity", self.air_velocity, 3)))
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         yield KIND_DRAG, _row(self.coefficient, *self.air_velocity), None, None
 
 @dataclass(frozen=True, eq=False)
@@ -231,7 +241,7 @@ class RigidRotation(Field):
         object.__setattr__(self, "omega", tuple(check_finite_vector("omega", self.omega, 3)))
         object.__setattr__(self, "center", tuple(check_finite_vector("center", self.center, 3)))
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         yield KIND_ROTATION, _row(*self.omega, *self.center), None, None
 
 @dataclass(frozen=True, eq=False)
@@ -269,7 +279,7 @@ class Vortex(Field):
         object.__setattr__(self, "core_radius", check_range(
             "core_radius", self.core_radius, 0.0, math.inf, low_inclusive=False))
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         yield (KIND_VORTEX, _row(*self.center, *self.axis, self.circulation, self.core_radius),
                None, None)
 
@@ -318,7 +328,7 @@ class NoiseWind(Field):
                            tuple(check_finite_vector("amplitude", self.amplitude, 3)))
         _check_noise(self)
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         prm = _row(*self.amplitude, self.frequency, self.octaves, self.lacunarity, self.gain,
                    0.0, self.time_scale)
         yield KIND_NOISE_WIND, prm, kernel_tables(self.seed, 3), None
@@ -392,7 +402,7 @@ class CurlNoise(Field):
         tables.setflags(write=False)
         object.__setattr__(self, "_tables", tables)
 
-    def terms(self):
+    def terms(self) -> Iterator[tuple[int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         prm = _row(self.amplitude, self.frequency, self.octaves, self.lacunarity, self.gain,
                    self.time_scale, self.ramp_distance, 0.0, 0.0, 0.0, *self.base_velocity)
         yield KIND_CURL, prm, self._tables, self._packed_colliders
@@ -411,7 +421,7 @@ class CurlNoise(Field):
         return (self.amplitude, self.frequency, self.octaves, self.lacunarity, self.gain,
                 self.time_scale, self.ramp_distance, *self.base_velocity)
 
-    def velocity(self, points, t: float = 0.0) -> np.ndarray:
+    def velocity(self, points: ArrayLike, t: float = 0.0) -> np.ndarray:
         """Velocity (m/s) at ``points`` (N, 3) (m) and time ``t`` (s); returns (N, 3).
 
         Evaluated octave by octave over blocks of points (vectorised), bitwise equal to
@@ -422,7 +432,9 @@ class CurlNoise(Field):
         curl_velocities(self._tables, self._packed_colliders, pts, t, *self._args(), out)
         return out
 
-    def jacobian(self, points, t: float = 0.0, velocities=None):
+    def jacobian(self, points: ArrayLike, t: float = 0.0,
+                 velocities: ArrayLike | None = None) -> tuple[NDArray[np.float64],
+                                                               NDArray[np.float64]]:
         """Velocity (N, 3) (m/s) and its Jacobian ``dv_i/dx_j`` (N, 3, 3) (1/s); ``velocities``
         is ignored (the field does not depend on them)."""
         pts = check_points("points", points)
@@ -433,7 +445,7 @@ class CurlNoise(Field):
         curl_jacobians(self._tables, self._packed_colliders, pts, t, *self._args(), vel, jac)
         return vel, jac
 
-    def potential(self, points, t: float = 0.0) -> np.ndarray:
+    def potential(self, points: ArrayLike, t: float = 0.0) -> np.ndarray:
         """The (ramped) vector potential psi (m^2/s) at ``points``; returns (N, 3)."""
         pts = check_points("points", points)
         t = check_finite("t", t)

@@ -11,9 +11,9 @@ system matrix; e.g. :class:`filters.elastic.springs.SpringSystem`); ``state`` ha
 the warm start of the iterative solver, so that a checkpointed state resumes bit-identically.
 Each scheme returns a :class:`StepInfo`. The linear algebra is :mod:`filters.linalg`.
 
-Schemes (the names of :data:`SCHEMES`; the advection of :mod:`filters.advect` uses the same
-vocabulary, plus ``"rk2"`` and ``"rk4"``)
---------------------------------------------------------------------------------------------
+**Schemes** (the names of :data:`SCHEMES`; the advection of :mod:`filters.advect` uses the
+same vocabulary, plus ``"rk2"`` and ``"rk4"``):
+
 * ``"euler"``, :func:`euler` -- forward Euler: ``x += h v; v += h f(x, v) / m``.  Energy of an
   undamped oscillator grows by ``(1 + h^2 w^2)`` per step.
 * ``"symplectic_euler"``, :func:`symplectic_euler` -- ``v += h f(x, v) / m; x += h v``.  Bounded

@@ -3,12 +3,17 @@ Euler step per particle."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit, prange
 
 from ..linalg.dense3 import implicit_step3
 from ..validation import check_points
 from .common import check_h
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["implicit_advection"]
 
@@ -25,7 +30,8 @@ def _implicit_advection(x, v, jac, h, out):
     return bad
 
 
-def implicit_advection(positions, velocity, jacobian, h):
+def implicit_advection(positions: ArrayLike, velocity: ArrayLike, jacobian: ArrayLike,
+                       h: float) -> NDArray[np.float64]:
     """Linearised backward Euler for particles in a velocity field ``dx/dt = v(x)``.
 
     Solves ``(I - h dv/dx) dx = h v(x^n)`` per particle by Cramer's rule (the solve of

@@ -5,11 +5,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..linalg.solver import LinearSolver
 from ..validation import check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from ..simulation import State
 
 __all__ = ["StepInfo", "check_h", "linear_solver", "warm_start", "store_warm_start"]
 
@@ -48,12 +54,13 @@ class StepInfo:
 #: Loosest relative PCG tolerance of a Newton solve as a multiple of ``newton_tol / |d_prev|``
 
 
-def check_h(h):
+def check_h(h: float) -> float:
     """``h`` as a float, or ``ValueError`` unless it is a finite step (s) > 0."""
     return check_range("h", h, 0.0, math.inf, low_inclusive=False)
 
 
-def linear_solver(solver, preconditioner, omega) -> LinearSolver:
+def linear_solver(solver: str | LinearSolver, preconditioner: str | None,
+                  omega: float | None) -> LinearSolver:
     """A :class:`LinearSolver`: the one given, or a new one for a method name."""
     if isinstance(solver, LinearSolver):
         if preconditioner is not None or omega is not None:
@@ -65,7 +72,7 @@ def linear_solver(solver, preconditioner, omega) -> LinearSolver:
 
 
 
-def warm_start(state, key, n):
+def warm_start(state: State, key: str, n: int) -> NDArray[np.float64] | None:
     """The warm start ``state.extra[key]`` as a flat float64 copy, or None if absent or not of
     size ``n``."""
     extra = state.extra
@@ -74,6 +81,6 @@ def warm_start(state, key, n):
     return None
 
 
-def store_warm_start(state, key, value):
+def store_warm_start(state: State, key: str, value: np.ndarray) -> None:
     """Keep ``value`` (any shape, 3N entries) as ``state.extra[key]`` (N, 3), a copy."""
     state.extra[key] = value.reshape(-1, 3).copy()

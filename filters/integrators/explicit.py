@@ -3,13 +3,21 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ..contact_solve import apply_explicit_contact
 from .common import StepInfo, check_h
+
+if TYPE_CHECKING:
+    from ..elastic.contact_model import ContactModel
+    from ..linalg.protocol import ImplicitSystem
+    from ..simulation import State
 
 __all__ = ["euler", "symplectic_euler"]
 
 
-def euler(system, state, h, *, contact=None, contact_tol=1e-4):
+def euler(system: ImplicitSystem, state: State, h: float, *, contact: ContactModel | None = None,
+          contact_tol: float = 1e-4) -> StepInfo:
     """Forward (explicit) Euler: ``x += h v; v += h f(x, v) / m``, in place.
 
     Parameters
@@ -45,7 +53,8 @@ def euler(system, state, h, *, contact=None, contact_tol=1e-4):
                                                             contact, contact_tol))
 
 
-def symplectic_euler(system, state, h, *, contact=None, contact_tol=1e-4):
+def symplectic_euler(system: ImplicitSystem, state: State, h: float, *,
+                     contact: ContactModel | None = None, contact_tol: float = 1e-4) -> StepInfo:
     """Symplectic (semi-implicit) Euler: ``v += h f(x, v) / m; x += h v``, in place, by the
     system's :meth:`~filters.linalg.ImplicitSystem.symplectic_step`; ``contact`` and the other
     arguments as in :func:`euler`."""

@@ -5,6 +5,7 @@ with contacts solved exactly on the quadratic model
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,12 +13,21 @@ from ..contact_solve import linearized_contact
 from ..validation import check_int, check_range
 from .common import StepInfo, check_h, linear_solver, store_warm_start, warm_start
 
+if TYPE_CHECKING:
+    from ..elastic.contact_model import ContactModel
+    from ..linalg.protocol import ImplicitSystem
+    from ..linalg.solver import LinearSolver
+    from ..simulation import State
+
 __all__ = ["linearized_backward_euler"]
 
 
-def linearized_backward_euler(system, state, h, *, solver="auto", tol=1e-6, max_iter=1000,
-                              preconditioner=None, omega=None, contact=None, contact_tol=1e-3,
-                              max_contact_iterations=20):
+def linearized_backward_euler(system: ImplicitSystem, state: State, h: float, *,
+                              solver: str | LinearSolver = "auto", tol: float = 1e-6,
+                              max_iter: int = 1000, preconditioner: str | None = None,
+                              omega: float | None = None, contact: ContactModel | None = None,
+                              contact_tol: float = 1e-3,
+                              max_contact_iterations: int = 20) -> StepInfo:
     """One Newton step of backward Euler (Baraff & Witkin 1998), in place.
 
     Solves ``(M/h^2 + C/h + K) dv = (f0 - h K v0) / h`` with ``K = -df/dx`` (made definite) and

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -11,6 +12,14 @@ from ..contact_solve import feasible_start, step_kinetic_energy
 from ..linalg.cg import vdot
 from ..validation import check_int, check_range
 from .common import StepInfo, check_h, linear_solver, store_warm_start, warm_start
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from ..elastic.contact_model import ContactModel
+    from ..linalg.protocol import ImplicitSystem
+    from ..linalg.solver import LinearSolver
+    from ..simulation import State
 
 __all__ = ["backward_euler", "NEWTON_RTOL"]
 
@@ -69,9 +78,14 @@ def _incremental_potential_parts(dx, v, masses, h):
     return 0.5 * acc / (h * h)
 
 
-def backward_euler(system, state, h, *, solver="auto", newton_tol=1e-3, newton_rtol=NEWTON_RTOL,
-                   max_newton=20, tol=1e-3, max_iter=1000, callback=None, preconditioner=None,
-                   forcing=0.1, extrapolate=False, omega=None, contact=None):
+def backward_euler(system: ImplicitSystem, state: State, h: float, *,
+                   solver: str | LinearSolver = "auto", newton_tol: float = 1e-3,
+                   newton_rtol: float = NEWTON_RTOL, max_newton: int = 20, tol: float = 1e-3,
+                   max_iter: int = 1000,
+                   callback: Callable[[int, float, float], object] | None = None,
+                   preconditioner: str | None = None, forcing: float = 0.1,
+                   extrapolate: bool = False, omega: float | None = None,
+                   contact: ContactModel | None = None) -> StepInfo:
     """Backward Euler by Newton iterations with a line search on the incremental potential.
 
     Minimises ``E(dx) = |dx - h v|_M^2/(2h^2) + U(x + dx) + dx^T C dx/(2h)`` over the position

@@ -2,9 +2,19 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .explicit import euler, symplectic_euler
 from .linearized import linearized_backward_euler
 from .newton import backward_euler
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from typing import Any
+
+    from ..linalg.protocol import ImplicitSystem
+    from ..simulation import State
+    from .common import StepInfo
 
 __all__ = ["SCHEMES", "check_scheme", "integrate"]
 
@@ -20,7 +30,7 @@ _RENAMED = {"forward": "euler", "symplectic": "symplectic_euler",
             "linearized": "linearized_backward_euler", "newton": "backward_euler"}
 
 
-def check_scheme(name: str, choices=tuple(SCHEMES), what: str = "scheme") -> str:
+def check_scheme(name: str, choices: Sequence[str] = tuple(SCHEMES), what: str = "scheme") -> str:
     """Return ``name`` if it is one of ``choices``; a former name gets a message naming the
     current one."""
     if name in _RENAMED and name not in choices:
@@ -31,7 +41,8 @@ def check_scheme(name: str, choices=tuple(SCHEMES), what: str = "scheme") -> str
     return name
 
 
-def integrate(system, state, h, scheme="backward_euler", **options):
+def integrate(system: ImplicitSystem, state: State, h: float, scheme: str = "backward_euler",
+              **options: Any) -> StepInfo:
     """Advance ``state`` by one step with the named scheme.
 
     Parameters

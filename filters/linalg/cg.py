@@ -11,12 +11,17 @@ the same way (:func:`vdot` keeps them in Numba).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from .dense3 import invert3_into
 from .scale import unit_scale
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+    from scipy.sparse import csr_matrix
 
 __all__ = ["pcg", "vdot"]
 
@@ -38,7 +43,7 @@ def _dot(a, b):
     return acc
 
 
-def vdot(a, b):
+def vdot(a: np.ndarray, b: np.ndarray) -> float:
     """``sum(a * b)`` of two float64 arrays in Numba: NumPy's ``vdot`` calls BLAS, whose
     threads stall on a busy 2-core machine (measured: a 12k-vector ``ddot`` up to 12 ms, and a
     settle test 3-5x slower under pytest than as a script); the Newton loop takes several per
@@ -138,7 +143,8 @@ def _update_p(p_vec, z, beta):
         p_vec[i] = z[i] + beta * p_vec[i]
 
 
-def pcg(matrix, b, x0=None, *, tol=1e-6, max_iter=1000, block=None):
+def pcg(matrix: csr_matrix, b: np.ndarray, x0: np.ndarray | None = None, *, tol: float = 1e-6,
+        max_iter: int = 1000, block: int | None = None) -> tuple[NDArray[np.float64], int, float]:
     """Solve the SPD system ``matrix @ x = b`` by block-Jacobi-preconditioned CG in Numba.
 
     Parameters

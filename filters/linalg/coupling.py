@@ -19,8 +19,15 @@ jello landing: 0.97 per iteration).  The exact blocks are added here:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
+
+    from .operator import BlockOperator
 
 __all__ = ["add_point_hessians_csr", "add_point_hessians_pairs"]
 
@@ -71,7 +78,8 @@ def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
     return True
 
 
-def add_point_hessians_csr(matrix, nodes, weights, hess, pinned):
+def add_point_hessians_csr(matrix: csr_matrix, nodes: np.ndarray, weights: np.ndarray,
+                           hess: np.ndarray, pinned: np.ndarray) -> csr_matrix | None:
     """``matrix + sum_j W_j^T H_j W_j`` over the free particles, or None when the pattern of
     the CSR ``matrix`` (3N, 3N) lacks a block it needs.
 
@@ -133,7 +141,8 @@ def _pair_points(keys, order, n, blocks, nodes, weights, hess, write):
     return True
 
 
-def add_point_hessians_pairs(operator, nodes, weights, hess):
+def add_point_hessians_pairs(operator: BlockOperator, nodes: np.ndarray, weights: np.ndarray,
+                             hess: np.ndarray) -> bool:
     """Turn the diagonal bound ``sum_k w_k H`` already on an operator's particle blocks into the
     exact ``W^T H W``, in place, by pair blocks ``-w_a w_b H`` (see the module docstring).
     Returns False (and changes nothing) when a pair is not one of the operator's.

@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .scale import unit_scale
 
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+    from scipy.sparse import spmatrix
+
 __all__ = ["direct_solve"]
 
 
-def direct_solve(matrix, b):
+def direct_solve(matrix: spmatrix, b: np.ndarray) -> NDArray[np.float64]:
     """Solve the SPD system ``matrix @ x = b`` by a sparse LU factorisation.
 
     SuperLU with a minimum-degree ordering on ``A + A^T``, symmetric mode and no pivoting

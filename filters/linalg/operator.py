@@ -12,9 +12,13 @@ of about 39 CSR non-zeros with their column indices. The conjugate-gradient solv
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["BlockOperator", "block_matvec", "apply_pair_block", "diag_product", "start_norm"]
 
@@ -109,7 +113,8 @@ class BlockOperator:
         (:mod:`filters.linalg.ssor`) stream ``blocks`` in place.
     """
 
-    def __init__(self, pairs, free, blocks, diag, inc_ptr, inc_spring, inc_other):
+    def __init__(self, pairs: np.ndarray, free: np.ndarray, blocks: np.ndarray, diag: np.ndarray,
+                 inc_ptr: np.ndarray, inc_spring: np.ndarray, inc_other: np.ndarray):
         self.pairs = pairs
         self.free = free
         self.blocks = blocks
@@ -127,7 +132,7 @@ class BlockOperator:
         self.upper_ordered = bool(self.upper[1].shape[0] == s
                                   and np.array_equal(self.upper[1], np.arange(s)))
 
-    def pair_lookup(self):
+    def pair_lookup(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Sorted keys ``min(a, b) N + max(a, b)`` of the pairs and the pair of every key
         (int64 arrays (S,)), computed once: finds the pair of two particles by bisection."""
         if getattr(self, "_lookup", None) is None:
@@ -141,12 +146,12 @@ class BlockOperator:
         return self._lookup
 
     @property
-    def shape(self):
+    def shape(self) -> tuple[int, int]:
         """``(3N, 3N)``."""
         n = 3 * self.diag.shape[0]
         return (n, n)
 
-    def matvec(self, p):
+    def matvec(self, p: np.ndarray) -> NDArray[np.float64]:
         """``H p`` for ``p`` of shape (N, 3) or (3N,); same shape out."""
         p = np.ascontiguousarray(p, dtype=np.float64)
         y = np.empty_like(p)

@@ -15,8 +15,14 @@ any system gets them.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
+
+    from .operator import BlockOperator
 
 __all__ = ["ImplicitSystem"]
 
@@ -42,32 +48,32 @@ class ImplicitSystem(ABC):
     gravity: np.ndarray
 
     @abstractmethod
-    def forces(self, x, v) -> np.ndarray:
+    def forces(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Total force (N) on every particle at positions ``x`` and velocities ``v``, (N, 3)."""
 
     @abstractmethod
-    def conservative_forces(self, x) -> np.ndarray:
+    def conservative_forces(self, x: np.ndarray) -> np.ndarray:
         """Forces of the potential energy (elastic, gravity) at ``x``, (N, 3); contacts are
         the integrators' (``contact=``)."""
 
     @abstractmethod
-    def damping_forces(self, xdir, v) -> np.ndarray:
+    def damping_forces(self, xdir: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Damping force ``-C v`` (N) with the damping directions of ``xdir``, (N, 3)."""
 
     @abstractmethod
-    def potential_energy(self, x) -> float:
+    def potential_energy(self, x: np.ndarray) -> float:
         """Potential energy (J) at ``x``."""
 
     @abstractmethod
-    def system_matrix(self, x, xdir, h):
+    def system_matrix(self, x: np.ndarray, xdir: np.ndarray, h: float) -> csr_matrix:
         """``H = M/h^2 + K(x) + C(xdir)/h`` as a ``scipy.sparse`` CSR matrix, (3N, 3N)."""
 
-    def implicit_operator(self, x, xdir, h):
+    def implicit_operator(self, x: np.ndarray, xdir: np.ndarray, h: float) -> BlockOperator | None:
         """``H`` as a matrix-free :class:`filters.linalg.operator.BlockOperator`, or None when
         the system has no matrix-free form (the solvers then use :meth:`system_matrix`)."""
         return None
 
-    def symplectic_step(self, x, v, h) -> None:
+    def symplectic_step(self, x: np.ndarray, v: np.ndarray, h: float) -> None:
         """Symplectic Euler in place: ``v += h f(x, v) / m; x += h v`` (systems with a fused
         kernel override it)."""
         v += h * self.forces(x, v) * self.inv_mass[:, None]

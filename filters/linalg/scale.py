@@ -11,8 +11,12 @@ power-of-two ``s`` (the scale is rounded to one).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["unit_scale"]
 
@@ -20,7 +24,9 @@ __all__ = ["unit_scale"]
 _WARM_LIMIT = 1e100
 
 
-def unit_scale(b, x0=None):
+def unit_scale(b: np.ndarray,
+               x0: np.ndarray | None = None) -> tuple[float, NDArray[np.float64],
+                                                      NDArray[np.float64] | None]:
     """The scale of a right-hand side and the scaled problem.
 
     Parameters

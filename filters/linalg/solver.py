@@ -14,6 +14,8 @@ allocates nothing per step.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..validation import check_choice, check_range
@@ -24,6 +26,13 @@ from .direct import direct_solve
 from .scale import unit_scale
 from .ssor import DEFAULT_OMEGA, SSORWorkspace, pcg_ssor
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+    from scipy.sparse import csr_matrix
+
+    from .operator import BlockOperator
+    from .protocol import ImplicitSystem
+
 __all__ = ["SOLVERS", "PRECONDITIONERS", "DEFAULT_OMEGA", "LinearSolver", "pcg_operator",
            "solve_linear", "add_block_diagonal"]
 
@@ -33,8 +42,10 @@ SOLVERS = ("auto", "pcg", "direct")
 PRECONDITIONERS = ("sgs", "block_jacobi", "ssor")
 
 
-def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditioner="sgs",
-                 omega=DEFAULT_OMEGA, workspace: SSORWorkspace | None = None):
+def pcg_operator(operator: BlockOperator, b: np.ndarray, x0: ArrayLike | None = None, *,
+                 tol: float = 1e-6, max_iter: int = 1000, preconditioner: str = "sgs",
+                 omega: float = DEFAULT_OMEGA,
+                 workspace: SSORWorkspace | None = None) -> tuple[NDArray[np.float64], int, float]:
     """Solve ``operator @ x = b`` by PCG with a matrix-free spring operator, in Numba.
 
     Parameters
@@ -100,7 +111,9 @@ def pcg_operator(operator, b, x0=None, *, tol=1e-6, max_iter=1000, preconditione
     return x.reshape(shape), int(it), float(res)
 
 
-def solve_linear(matrix, b, x0=None, *, solver="auto", tol=1e-6, max_iter=1000):
+def solve_linear(matrix: csr_matrix, b: np.ndarray, x0: np.ndarray | None = None, *,
+                 solver: str = "auto", tol: float = 1e-6,
+                 max_iter: int = 1000) -> tuple[NDArray[np.float64], int, bool]:
     """Solve ``matrix @ x = b`` with the chosen solver.
 
     Parameters
@@ -156,7 +169,10 @@ class LinearSolver:
                                  high_inclusive=False)
         self.workspace = SSORWorkspace()
 
-    def operator(self, system, x, xdir, h, diagonal=None, points=None):
+    def operator(self, system: ImplicitSystem, x: np.ndarray, xdir: np.ndarray, h: float,
+                 diagonal: np.ndarray | None = None,
+                 points: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                 ) -> csr_matrix | BlockOperator:
         """The system matrix at ``(x, xdir, h)``: matrix-free when the method iterates and the
         system has such a form, else the assembled CSR matrix; plus the particle blocks
         ``diagonal`` (N, 3, 3) when given (rows of pinned particles stay the identity).  With
@@ -174,8 +190,11 @@ class LinearSolver:
         mat = system.system_matrix(x, xdir, h)
         return _with_contact(mat, system.pinned, diagonal, points)
 
-    def solve(self, system, x, xdir, h, rhs, warm, tol: float, max_iter: int, diagonal=None,
-              points=None):
+    def solve(self, system: ImplicitSystem, x: np.ndarray, xdir: np.ndarray, h: float,
+              rhs: np.ndarray, warm: np.ndarray | None, tol: float, max_iter: int,
+              diagonal: np.ndarray | None = None,
+              points: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+              ) -> tuple[NDArray[np.float64], int, bool]:
         """Solve ``(H(x, xdir) + diagonal) d = rhs`` for an
         :class:`~filters.linalg.protocol.ImplicitSystem`.
 
@@ -222,7 +241,8 @@ class LinearSolver:
         return solve_linear(op, rhs.ravel(), warm, solver=self.method, tol=tol,
                             max_iter=max_iter)
 
-    def product(self, system, x, xdir, h, p):
+    def product(self, system: ImplicitSystem, x: np.ndarray, xdir: np.ndarray, h: float,
+                p: np.ndarray) -> NDArray[np.float64]:
         """``H(x, xdir) p`` for ``p`` (N, 3) (no added blocks), shaped like ``p``."""
         op = self.operator(system, x, xdir, h)
         return (op @ np.ascontiguousarray(p).ravel()).reshape(p.shape)
@@ -240,7 +260,7 @@ def _with_contact(mat, pinned, diagonal, points):
     return add_block_diagonal(mat, diagonal, pinned)
 
 
-def add_block_diagonal(matrix, blocks, pinned):
+def add_block_diagonal(matrix: csr_matrix, blocks: np.ndarray, pinned: np.ndarray) -> csr_matrix:
     """``matrix + diag(blocks)`` for a CSR ``matrix`` (3N, 3N) and particle blocks (N, 3, 3),
     leaving the rows and columns of ``pinned`` particles alone; a new CSR matrix."""
     import scipy.sparse as sp

@@ -40,7 +40,7 @@ class SSORWorkspace:
     def __init__(self):
         self.arrays = None
 
-    def get(self, n: int, s: int):
+    def get(self, n: int, s: int) -> tuple[np.ndarray, ...]:
         """The arrays for ``n`` particles and ``s`` pairs (new ones if the sizes changed)."""
         work = self.arrays
         if work is None or work[0].shape[0] != n or work[2].shape[0] != s:

@@ -190,8 +190,10 @@ def _curl_combine(colliders, flat, start, count, acc, scale, ramp_distance, bx, 
             acc[8, j] * scale, acc[9, j] * scale, acc[10, j] * scale, acc[11, j] * scale)
 
 
-def curl_velocities(tables, colliders, pts, t, amplitude, frequency, octaves, lacunarity, gain,
-                time_scale, ramp_distance, bx, by, bz, out):
+def curl_velocities(tables: np.ndarray, colliders: np.ndarray, pts: np.ndarray, t: float,
+                    amplitude: float, frequency: float, octaves: int, lacunarity: float,
+                    gain: float, time_scale: float, ramp_distance: float, bx: float, by: float,
+                    bz: float, out: np.ndarray) -> None:
     """Curl noise on (N, 3) points, octave by octave over blocks so that the inner loops
     vectorise; bitwise equal to :func:`curl_point` at every point."""
     n = pts.shape[0]

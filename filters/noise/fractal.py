@@ -25,6 +25,7 @@ kernels' to the bit (tested). A last octave whose frequency overflows float64 is
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -39,6 +40,11 @@ from .perlin import (
     perlin_value_grad,
     perlin_value_grad_hess,
 )
+
+if TYPE_CHECKING:
+    from typing import Any
+
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "MAX_OCTAVES",
@@ -123,7 +129,8 @@ def fbm_value(p, x, y, z, frequency, octaves, lacunarity, gain, ox, oy, oz, turb
 
 @njit(cache=True)
 def fbm_value_grad_hess(p, x, y, z, frequency, octaves, lacunarity, gain, ox, oy, oz):
-    """fBm value, gradient (1/m) and Hessian (1/m^2) at one point (no turbulence: |N| is not C1).
+    """fBm value, gradient (1/m) and Hessian (1/m^2) at one point (no turbulence: ``|N|`` is
+    not C1).
 
     Returns the 10-tuple ``v, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz``.
     """
@@ -236,7 +243,8 @@ def _fbm_array(table, pts, frequency, octaves, lacunarity, gain, ox, oy, oz, tur
     return out, grad
 
 
-def check_fractal(octaves, lacunarity, gain, frequency=1.0):
+def check_fractal(octaves: int, lacunarity: float, gain: float,
+                  frequency: float = 1.0) -> tuple[int, float, float]:
     """Validate the octaves (1 to :data:`MAX_OCTAVES`), lacunarity ([1, 16]) and gain ([0, 1])
     of a fractal sum, and that its last octave's frequency is finite; returns them."""
     octaves = check_int("octaves", octaves, 1, MAX_OCTAVES)
@@ -255,9 +263,10 @@ def check_top_frequency(frequency: float, octaves: int, lacunarity: float) -> No
             f"frequency * lacunarity**(octaves - 1) (the last octave's frequency) must be finite, "
             f"got frequency = {frequency!r}, lacunarity = {lacunarity!r}, octaves = {octaves}")
 
-def fbm3(points, *, octaves: int = 4, lacunarity: float = 2.0, gain: float = 0.5, seed: int = 0,
-         frequency: float = 1.0, time: float = 0.0, time_scale: float = 0.0,
-         turbulence: bool = False, gradient: bool = False):
+def fbm3(points: ArrayLike, *, octaves: int = 4, lacunarity: float = 2.0, gain: float = 0.5,
+         seed: int = 0, frequency: float = 1.0, time: float = 0.0, time_scale: float = 0.0,
+         turbulence: bool = False,
+         gradient: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Fractional Brownian motion of improved noise (or Perlin's turbulence).
 
     ``f(x, t) = sum_{k < octaves} gain**k * N(lacunarity**k * frequency * x + shift_k + o(t))``
@@ -304,6 +313,7 @@ def fbm3(points, *, octaves: int = 4, lacunarity: float = 2.0, gain: float = 0.5
     return _fbm_array(table, pts, frequency, octaves, lacunarity, gain, ox, oy, oz,
                       bool(turbulence), bool(gradient))
 
-def turbulence3(points, **kwargs):
+def turbulence3(points: ArrayLike,
+                **kwargs: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Perlin's turbulence ``sum_k gain**k |N(...)|``: :func:`fbm3` with ``turbulence=True``."""
     return fbm3(points, turbulence=True, **kwargs)

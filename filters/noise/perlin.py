@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 import numbers
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -62,6 +63,9 @@ from .lattice import gradient_vector as _gvec
 from .lattice import lerp as _lerp
 from .lattice import lerp_with_gradient as _lerp_d
 from .lattice import wide_vectors as _wide_vectors
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "PERMUTATION",
@@ -190,7 +194,7 @@ def _pair_table(seed: int) -> np.ndarray:
     return table
 
 
-def kernel_table(seed) -> np.ndarray:
+def kernel_table(seed: int) -> np.ndarray:
     """The kernels' (512,) int32 table of a seed (validated as in :func:`permutation_table`):
     the permutation in the low 8 bits, the gradient code above (see ``_hash_table``)."""
     seed = check_int("seed", seed, -(1 << 63), (1 << 64) - 1)
@@ -484,7 +488,7 @@ def _perlin_hess_many(p, pts, frequency, out, grad, hess):
         hess[i, 1, 2] = hess[i, 2, 1] = f2 * r[9]
 
 
-def check_frequency(frequency) -> float:
+def check_frequency(frequency: float) -> float:
     """``frequency`` (1/m) as a finite float > 0, else ValueError naming it."""
     return check_finite("frequency", frequency, 0.0, math.inf, low_inclusive=False)
 
@@ -504,7 +508,8 @@ def _points_or_scalars(x, y, z):
         coords.append(float(value))
     return np.array([coords], dtype=np.float64), True
 
-def perlin3(x, y=None, z=None, *, seed: int = 0, frequency: float = 1.0):
+def perlin3(x: ArrayLike, y: float | None = None, z: float | None = None, *, seed: int = 0,
+            frequency: float = 1.0) -> NDArray[np.float64]:
     """Perlin's improved noise (Perlin 2002), exact to his reference in float64.
 
     Parameters
@@ -545,7 +550,8 @@ def perlin3(x, y=None, z=None, *, seed: int = 0, frequency: float = 1.0):
     _perlin_many(_pair_table(seed & ((1 << 64) - 1)), pts, frequency, out)
     return float(out[0]) if scalar else out
 
-def perlin3_gradient(points, *, seed: int = 0, frequency: float = 1.0):
+def perlin3_gradient(points: ArrayLike, *, seed: int = 0,
+                     frequency: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Improved noise and its analytic gradient.
 
     Parameters
@@ -572,7 +578,9 @@ def perlin3_gradient(points, *, seed: int = 0, frequency: float = 1.0):
     interleave3(soa[0], soa[1], soa[2], grad)
     return out, grad
 
-def perlin3_hessian(points, *, seed: int = 0, frequency: float = 1.0):
+def perlin3_hessian(points: ArrayLike, *, seed: int = 0,
+                    frequency: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                     NDArray[np.float64]]:
     """Improved noise with its analytic gradient and Hessian.
 
     Parameters

@@ -8,6 +8,7 @@ the same place still differ. Deterministic.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -15,6 +16,9 @@ from numba import njit, prange
 from ..validation import check_finite, check_int, check_points, check_range
 from .fractal import MAX_OCTAVES, check_top_frequency, fbm_value
 from .perlin import kernel_tables
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["noise_variation"]
 
@@ -46,8 +50,8 @@ def _variation_many(table, pts, ids, has_ids, frequency, octaves, low, high, out
             s = 1.0
         out[i] = low + (high - low) * s
 
-def noise_variation(points, low: float, high: float, *, ids=None, frequency: float = 1.0,
-                    octaves: int = 1, seed: int = 0) -> np.ndarray:
+def noise_variation(points: ArrayLike, low: float, high: float, *, ids: ArrayLike | None = None,
+                    frequency: float = 1.0, octaves: int = 1, seed: int = 0) -> np.ndarray:
     """Per-particle attributes (size, colour, lifetime...) in ``[low, high]`` from noise.
 
     Noise sampled at each particle's position (spatially coherent variation: neighbours look

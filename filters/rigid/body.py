@@ -16,6 +16,7 @@ the body frame, with their SPH volumes.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,6 +25,11 @@ from ..validation import check_bool, check_int, check_points, check_range
 from .mass import MassProperties, mass_properties
 from .quaternion import quat_from_matrix
 from .sdf import body_distances, face_planes, grid_sdf, is_convex, pack_sdfs
+
+if TYPE_CHECKING:
+    from typing import Any
+
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["RigidBody", "edge_points"]
 
@@ -108,9 +114,10 @@ class RigidBody:
         Body-frame surface samples with their SPH volumes (m^3).
     """
 
-    def __init__(self, vertices, faces, *, density=1000.0, restitution=0.0, friction=0.5,
-                 fixed=False, contact_spacing=None, sdf_resolution=32, sample_spacing=None,
-                 sample_options=None):
+    def __init__(self, vertices: ArrayLike, faces: ArrayLike, *, density: float = 1000.0,
+                 restitution: float = 0.0, friction: float = 0.5, fixed: bool = False,
+                 contact_spacing: float | None = None, sdf_resolution: int = 32,
+                 sample_spacing: float | None = None, sample_options: dict[str, Any] | None = None):
         props = mass_properties(vertices, faces, density)
         self.properties: MassProperties = props
         self.density = float(density)
@@ -155,7 +162,9 @@ class RigidBody:
         return (f"RigidBody({self.vertices.shape[0]} vertices, {kind}, mass={self.mass:.6g} kg"
                 f"{', fixed' if self.fixed else ''})")
 
-    def signed_distance(self, points, velocities=None):
+    def signed_distance(self, points: ArrayLike,
+                        velocities: ArrayLike | None = None) -> tuple[NDArray[np.float64],
+                                                                      NDArray[np.float64]]:
         """Signed distance (m) and outward normals of body-frame points, as contacts see them.
 
         Parameters

@@ -19,12 +19,18 @@ Their impulses are solved by :mod:`filters.rigid.impulses`.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
 from ..elastic.threads import serial_below
 from .sdf import body_distance, convex_distance
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from ..elastic.contact import Colliders
 
 __all__ = ["pack_colliders", "find_contacts", "broad_phase", "CONTACT_FIELDS",
            "PARALLEL_MIN_POINTS"]
@@ -39,7 +45,9 @@ PARALLEL_MIN_POINTS = 20_000
 _BOX_NORMALS = np.array([[-1.0, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]])
 
 
-def pack_colliders(colliders):
+def pack_colliders(colliders: Colliders | None) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                         NDArray[np.float64], NDArray[np.float64],
+                                                         float, NDArray[np.int64]]:
     """The colliders as arrays for :func:`find_contacts`.
 
     Parameters
@@ -94,7 +102,8 @@ def pack_colliders(colliders):
     return planes, spheres, boxes, box_planes, thickness, ids
 
 
-def broad_phase(positions, radius, margin, fixed):
+def broad_phase(positions: np.ndarray, radius: np.ndarray, margin: np.ndarray,
+                fixed: np.ndarray) -> NDArray[np.bool_]:
     """Pairs of bodies whose bounding spheres, grown by their margins, overlap: ``(B, B)`` bool,
     symmetric, false on the diagonal and between two fixed bodies."""
     diff = positions[:, None, :] - positions[None, :, :]
@@ -284,8 +293,11 @@ def _fill(cp, owner, local, positions, rotations, v, w, fixed, radius, margin, p
                         tie, tie_speed, n_local, n_partners, out_i, out_f)
 
 
-def find_contacts(points, owner, local, positions, rotations, v, w, fixed, radius, margin,
-                  colliders, e_body, mu_body, sdfs, pairs, tie, tie_speed, n_local):
+def find_contacts(points: np.ndarray, owner: np.ndarray, local: np.ndarray, positions: np.ndarray,
+                  rotations: np.ndarray, v: np.ndarray, w: np.ndarray, fixed: np.ndarray,
+                  radius: np.ndarray, margin: np.ndarray, colliders: tuple, e_body: np.ndarray,
+                  mu_body: np.ndarray, sdfs: tuple, pairs: np.ndarray, tie: float, tie_speed: float,
+                  n_local: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """All contacts of the bodies' contact points at the current positions.
 
     Parameters

@@ -198,7 +198,8 @@ def _partial_sums(points, forces, bodies, centers, partial):
             partial[c, b, 5] += rx * fy - ry * fx
 
 
-def point_force_sums(points, forces, bodies, centers) -> np.ndarray:
+def point_force_sums(points: np.ndarray, forces: np.ndarray, bodies: np.ndarray,
+                     centers: np.ndarray) -> np.ndarray:
     """Total force and torque about each body's centre of forces applied at points.
 
     Parameters

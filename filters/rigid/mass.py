@@ -14,10 +14,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..validation import check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["MassProperties", "check_closed_mesh", "mass_properties", "mesh_volume"]
 
@@ -52,7 +56,8 @@ class MassProperties:
     principal_axes: np.ndarray
 
 
-def check_closed_mesh(vertices, faces):
+def check_closed_mesh(vertices: ArrayLike,
+                      faces: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Validate a triangle mesh as the boundary of a solid and return it as arrays.
 
     Parameters
@@ -147,7 +152,7 @@ def _subexpressions(w0, w1, w2):
     return f1, f2, f3, g0, g1, g2
 
 
-def mass_properties(vertices, faces, density: float = 1.0) -> MassProperties:
+def mass_properties(vertices: ArrayLike, faces: ArrayLike, density: float = 1.0) -> MassProperties:
     """Volume, mass, centre of mass and inertia tensor of the solid bounded by a mesh.
 
     Parameters

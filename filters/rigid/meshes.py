@@ -4,10 +4,14 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..validation import check_finite_vector, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["box_mesh"]
 
@@ -18,7 +22,8 @@ _BOX_FACES = np.array([(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0
                       dtype=np.int64)
 
 
-def box_mesh(size, center=(0.0, 0.0, 0.0)):
+def box_mesh(size: ArrayLike,
+             center: ArrayLike = (0.0, 0.0, 0.0)) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """An axis-aligned box as 8 vertices and 12 outward-oriented triangles.
 
     Parameters

@@ -9,11 +9,15 @@ for users (initial orientations, reading frames).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from ..validation import check_finite, check_finite_vector
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["quat_multiply", "quat_conjugate", "quat_normalize", "quat_to_matrix",
            "quat_from_matrix", "quat_axis_rotation", "quaternion_from_axis_angle",
@@ -111,7 +115,7 @@ def quat_axis_rotation(axis, angle):
     return q
 
 
-def quaternion_from_axis_angle(axis, angle) -> np.ndarray:
+def quaternion_from_axis_angle(axis: ArrayLike, angle: float) -> np.ndarray:
     """The unit quaternion ``(w, x, y, z)`` of a rotation by ``angle`` (rad) about ``axis``.
 
     Parameters
@@ -133,7 +137,7 @@ def quaternion_from_axis_angle(axis, angle) -> np.ndarray:
     return np.r_[math.cos(0.5 * angle), math.sin(0.5 * angle) * a / norm]
 
 
-def rotation_matrices(quaternions) -> np.ndarray:
+def rotation_matrices(quaternions: ArrayLike) -> np.ndarray:
     """Rotation matrices (Q, 3, 3) of unit quaternions (Q, 4) ``(w, x, y, z)``."""
     q = check_quaternions("quaternions", quaternions, None)
     w, x, y, z = q.T
@@ -150,7 +154,8 @@ def rotation_matrices(quaternions) -> np.ndarray:
     return r
 
 
-def check_quaternions(name: str, value, n: int | None, normalize: bool = True) -> np.ndarray:
+def check_quaternions(name: str, value: ArrayLike, n: int | None,
+                      normalize: bool = True) -> np.ndarray:
     """Return ``value`` as ``(n, 4) float64`` unit quaternions (a copy).
 
     With ``normalize`` they are divided by their norms (a round-off change); without, they are

@@ -25,9 +25,15 @@ call :func:`body_distance`.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import NDArray
 
 __all__ = ["SDF_CONVEX", "SDF_GRID", "face_planes", "is_convex", "grid_sdf", "pack_sdfs",
            "body_distance", "body_distances", "triangle_distance", "winding_number", "convex_distance",
@@ -157,7 +163,8 @@ def _grid_values(v, f, origin, cell, nx, ny, nz, out):
         out[i, j, k] = d
 
 
-def grid_sdf(vertices: np.ndarray, faces: np.ndarray, resolution: int = 32):
+def grid_sdf(vertices: np.ndarray, faces: np.ndarray,
+             resolution: int = 32) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]:
     """Exact signed distances of a closed mesh on a grid around it.
 
     Parameters
@@ -189,7 +196,9 @@ def grid_sdf(vertices: np.ndarray, faces: np.ndarray, resolution: int = 32):
     return origin, cell, values
 
 
-def pack_sdfs(sdfs):
+def pack_sdfs(sdfs: Sequence[tuple]) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                              NDArray[np.float64], NDArray[np.float64],
+                                              NDArray[np.float64]]:
     """Pack the bodies' distance functions for :func:`body_distance`.
 
     Parameters

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +39,11 @@ from .dynamics import (PARALLEL_MIN_POINTS, body_rotations, drift, kick, point_f
 from .impulses import solve_positions, solve_velocities
 from .quaternion import check_quaternions
 from .sdf import pack_sdfs
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["RigidModel", "RigidBodies", "SCHEMES", "BODY_FIELDS"]
 
@@ -140,10 +146,13 @@ class RigidBodies(Simulation):
     instability_hint = ("a body was driven too hard for this time step: reduce max_dt or the "
                         "applied forces")
 
-    def __init__(self, bodies, positions=None, orientations=None, velocities=None,
-                 angular_velocities=None, *, gravity=(0.0, 0.0, -9.81), colliders=None,
-                 scheme="symplectic_euler", max_dt=1.0 / 240.0, iterations=200, slop=1e-4,
-                 separation_rate=0.2, rest_speed=1e-2, max_speed=100.0):
+    def __init__(self, bodies: Sequence[RigidBody], positions: ArrayLike | None = None,
+                 orientations: ArrayLike | None = None, velocities: ArrayLike | None = None,
+                 angular_velocities: ArrayLike | None = None, *,
+                 gravity: ArrayLike = (0.0, 0.0, -9.81), colliders: Colliders | None = None,
+                 scheme: str = "symplectic_euler", max_dt: float = 1.0 / 240.0,
+                 iterations: int = 200, slop: float = 1e-4, separation_rate: float = 0.2,
+                 rest_speed: float = 1e-2, max_speed: float = 100.0):
         bodies = tuple(bodies) if not isinstance(bodies, RigidBody) else (bodies,)
         if not bodies:
             raise ValueError("bodies must hold at least one RigidBody")
@@ -228,7 +237,7 @@ class RigidBodies(Simulation):
     def _body_index(self, body) -> int:
         return check_int("body", body, 0, self.n_bodies - 1)
 
-    def apply_force(self, body, force, point=None) -> None:
+    def apply_force(self, body: int, force: ArrayLike, point: ArrayLike | None = None) -> None:
         """Apply ``force`` (3,) (N) to ``body`` for the next step, at the world ``point`` (m)
         (which adds the torque ``(point - x) x force``) or at the centre of mass."""
         b = self._body_index(body)
@@ -238,12 +247,13 @@ class RigidBodies(Simulation):
             r = check_finite_vector("point", point, 3) - self.state.positions[b]
             self._pending[b, 3:] += np.cross(r, f)
 
-    def apply_torque(self, body, torque) -> None:
+    def apply_torque(self, body: int, torque: ArrayLike) -> None:
         """Apply ``torque`` (3,) (N m, world) to ``body`` for the next step."""
         b = self._body_index(body)
         self._pending[b, 3:] += check_finite_vector("torque", torque, 3)
 
-    def apply_point_forces(self, points, forces, bodies) -> np.ndarray:
+    def apply_point_forces(self, points: ArrayLike, forces: ArrayLike,
+                           bodies: ArrayLike) -> np.ndarray:
         """Apply forces at many points for the next step (a liquid's forces on the samples).
 
         Parameters
@@ -408,7 +418,7 @@ class RigidBodies(Simulation):
         self._pending[:] = 0.0
 
     # -- output -----------------------------------------------------------------------------
-    def to_world(self, points, bodies):
+    def to_world(self, points: ArrayLike, bodies: ArrayLike) -> NDArray[np.float64]:
         """World positions and velocities of body-frame points for the current state.
 
         Parameters
@@ -439,7 +449,7 @@ class RigidBodies(Simulation):
                                 out_v)
         return out_x, out_v
 
-    def surface_samples(self):
+    def surface_samples(self) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
         """The bodies' surface samples (:attr:`RigidBody.samples`) for the current state.
 
         Returns
@@ -511,7 +521,7 @@ class RigidBodies(Simulation):
         """Total energy (J) of the current state (:meth:`energies`)."""
         return self.energies().total
 
-    def momentum(self):
+    def momentum(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Total linear momentum (kg m/s) and angular momentum about the origin (kg m^2/s) of
         the moving bodies, each (3,)."""
         s = self.state

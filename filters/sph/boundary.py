@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -37,6 +38,11 @@ from ..geometry import Box
 from ..kernels import kernel_id, kernel_w
 from ..neighbors import NeighborSearch
 from ..validation import check_finite_vector, check_int, check_range
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from numpy.typing import ArrayLike
 
 __all__ = ["BoundaryParticles", "lattice_volume", "box_boundary", "mesh_boundary",
            "boundary_volumes", "concatenate_boundaries", "BOX_FACES"]
@@ -169,9 +175,9 @@ def _axis_coords(lo, hi, spacing, layers):
     return coords, widths
 
 
-def box_boundary(lower, upper=None, spacing: float | None = None, *,
+def box_boundary(lower: ArrayLike, upper: ArrayLike | None = None, spacing: float | None = None, *,
                  support_factor: float = 2.0, kernel: str = "cubic", layers: int | None = None,
-                 open_top: bool = False, free_slip=()) -> BoundaryParticles:
+                 open_top: bool = False, free_slip: Iterable[str] = ()) -> BoundaryParticles:
     """Boundary particles in layers outside the walls of the box ``[lower, upper]``.
 
     The fluid lives inside the box.  Samples sit on the fluid lattice continued through the walls
@@ -330,7 +336,7 @@ def _flat_wall_gamma(spacing, h, kind, kernel):
     return (1.0 - rho_fluid) / rho_wall
 
 
-def boundary_volumes(points, spacing: float, *, support_factor: float = 2.0,
+def boundary_volumes(points: ArrayLike, spacing: float, *, support_factor: float = 2.0,
                      kernel: str = "cubic") -> np.ndarray:
     """Volumes of one layer of boundary particles sampling a surface (m^3).
 
@@ -368,8 +374,9 @@ def boundary_volumes(points, spacing: float, *, support_factor: float = 2.0,
     return _akinci_volumes(x, off, idx, kind, h) * _flat_wall_gamma(spacing, h, kind, kernel)
 
 
-def mesh_boundary(vertices, faces, spacing: float, *, support_factor: float = 2.0,
-                  kernel: str = "cubic", check_closed: bool = True) -> BoundaryParticles:
+def mesh_boundary(vertices: ArrayLike, faces: ArrayLike, spacing: float, *,
+                  support_factor: float = 2.0, kernel: str = "cubic",
+                  check_closed: bool = True) -> BoundaryParticles:
     """One layer of boundary particles sampled on a closed triangle mesh.
 
     Every triangle is sampled on a barycentric lattice whose step is at most ``spacing``;

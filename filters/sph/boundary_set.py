@@ -13,6 +13,7 @@ et al. (2012), "Versatile rigid-fluid coupling for incompressible SPH" (ACM TOG 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -22,6 +23,9 @@ from ..binning import cell_keys, counting_sort
 from ..kernels import kernel_dw
 from .boundary import BoundaryParticles
 from .neighbourhood import boundary_reach_mask, cell_range, wall_of
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["BoundarySet", "boundary_forces"]
 
@@ -104,7 +108,8 @@ class BoundarySet:
                 self.sorted_volumes, self.sorted_mass, self.sorted_friction_volumes,
                 self.sorted_normals, self.sorted_velocities, self.moving)
 
-    def move(self, points=None, velocities=None, volumes=None, indices=None) -> None:
+    def move(self, points: ArrayLike | None = None, velocities: ArrayLike | None = None,
+             volumes: ArrayLike | None = None, indices: ArrayLike | None = None) -> None:
         """Set new positions, velocities and/or volumes of (some of) the boundary particles.
 
         Parameters
@@ -210,7 +215,7 @@ def _forces(sel, xb, vb, volb, fvolb, nrmb, x, start, origin, cell, dims, mass, 
         out[k, 2] = fz
 
 
-def boundary_forces(record, indices=None) -> np.ndarray:
+def boundary_forces(record: dict, indices: ArrayLike | None = None) -> np.ndarray:
     """Force (N) the fluid exerted on boundary particles during the step described by ``record``.
 
     For each pair of a fluid particle ``i`` and a boundary particle ``b`` the fluid's pressure

@@ -91,12 +91,16 @@ gathers only, so results are bit-identical for any thread count.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import dfsph_kernels as K
 from .neighbourhood import WALL_CLUSTERS, neighbourhood_pass
 from .viscosity import ImplicitViscosity
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["DFSPHSolver", "DFSPH_WARM_START", "DFSPH_WARM_START_CAP", "DFSPH_WARM_START_CAP_V",
            "DFSPH_MIN_NEIGHBOURS", "DFSPH_WALL_GAP", "DFSPH_WALL_GAP_SINGLE",
@@ -158,8 +162,9 @@ class DFSPHSolver:
         The last density solve's wall pressures ``pw`` (m^2/s^2, like ``pi``).
     """
 
-    def __init__(self, rest_volume, support, kind, max_density_error, max_divergence_error,
-                 max_iterations, min_iterations=2, min_divergence_iterations=1, walls=None):
+    def __init__(self, rest_volume: float, support: float, kind: int, max_density_error: float,
+                 max_divergence_error: float, max_iterations: int, min_iterations: int = 2,
+                 min_divergence_iterations: int = 1, walls: tuple | None = None):
         self.volume = float(rest_volume)
         self.support = float(support)
         self.kind = int(kind)
@@ -216,7 +221,8 @@ class DFSPHSolver:
             self.ntab = np.empty((n, cap + 1), dtype=np.int32)  # + a spare column
             self.fw = np.empty((n, cap), dtype=np.float32)
 
-    def neighbourhood(self, x, start, origin, cell, dims, boundary, mass):
+    def neighbourhood(self, x: np.ndarray, start: np.ndarray, origin: np.ndarray, cell: float,
+                      dims: np.ndarray, boundary: tuple, mass: float) -> NDArray[np.float64]:
         """Neighbours, kernel gradients, densities, ``alpha_i`` and walls at positions ``x``.
 
         Parameters
@@ -257,7 +263,7 @@ class DFSPHSolver:
         self._x = x  # the solves of this step use these positions (the drift comes last)
         return self.rho
 
-    def density_rate(self, v):
+    def density_rate(self, v: np.ndarray) -> NDArray[np.float64]:
         """``(D rho_i / D t) / rho0`` (1/s) for velocities ``v`` (after :meth:`neighbourhood`)."""
         K.density_rate(v, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.vrate,
                        self.rate)
@@ -293,7 +299,7 @@ class DFSPHSolver:
         self.wall_violation = float(worst)
         return it, err
 
-    def divergence_solve(self, v, dt, kappa_v):
+    def divergence_solve(self, v: np.ndarray, dt: float, kappa_v: np.ndarray) -> None:
         """Make the velocities divergence free (Bender & Koschier 2017, Alg. 2), in place.
 
         Parameters
@@ -317,14 +323,15 @@ class DFSPHSolver:
         self.divergence_iterations = it
         self.divergence_error = float(err) * dt
 
-    def skip_divergence(self, kappa_v):
+    def skip_divergence(self, kappa_v: np.ndarray) -> None:
         """No divergence solve this step: zero pressure and warm start."""
         self.pi_v[:] = 0.0
         kappa_v[:] = 0.0
         self.divergence_iterations = 0
         self.divergence_error = 0.0
 
-    def density_solve(self, v, rho, rho0, dt, pi_prev):
+    def density_solve(self, v: np.ndarray, rho: np.ndarray, rho0: float, dt: float,
+                      pi_prev: np.ndarray) -> None:
         """Make the predicted density ``rho0`` (Bender & Koschier 2017, Alg. 3), in place.
 
         Parameters
@@ -358,7 +365,8 @@ class DFSPHSolver:
         self.density_iterations = it
         self.density_error = float(err)
 
-    def viscosity_solve(self, v, x, dt, nu, nu_b, tolerance=1e-3, max_iterations=100):
+    def viscosity_solve(self, v: np.ndarray, x: np.ndarray, dt: float, nu: float, nu_b: float,
+                        tolerance: float = 1e-3, max_iterations: int = 100) -> int:
         """Implicit viscosity (Weiler, Koschier, Brand & Bender 2018, "A physically consistent
         implicit viscosity solver for SPH fluids", CGF 37(2)): solve ``(I - dt L) v' = v`` by
         conjugate gradients with a block-Jacobi preconditioner, in place.
@@ -386,11 +394,11 @@ class DFSPHSolver:
         return it
 
     @staticmethod
-    def kick(v, a, dt):
+    def kick(v: np.ndarray, a: np.ndarray, dt: float) -> None:
         """``v += dt a`` in parallel (m/s)."""
         K.kick(v, a, dt)
 
     @staticmethod
-    def drift(x, v, dt):
+    def drift(x: np.ndarray, v: np.ndarray, dt: float) -> float:
         """``x += dt v`` in parallel; returns ``max |v|`` (m/s)."""
         return float(K.drift(x, v, dt))

@@ -12,6 +12,7 @@ boundary particles is computed on demand (:func:`filters.sph.boundary_set.bounda
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -24,6 +25,11 @@ from . import forces, particles
 from .dfsph import DFSPHSolver
 from .wall_profile import WallProfile
 from .wcsph import CELL_PAD, REACH
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
+    from .liquid import SPHLiquid
 
 __all__ = ["DFSPHStepper", "MIN_DT", "BUSY", "EASY", "FULL_STEP", "WALL_CFL"]
 
@@ -55,7 +61,7 @@ class DFSPHStepper:
         Kinematic viscosity of the fluid and against the boundary (m^2/s).
     """
 
-    def __init__(self, liquid, kind: int, volume: float, nu: float, nu_b: float):
+    def __init__(self, liquid: SPHLiquid, kind: int, volume: float, nu: float, nu_b: float):
         m = liquid.model
         n = liquid.state.n_points
         walls = None
@@ -80,7 +86,7 @@ class DFSPHStepper:
     def forget_lists(self) -> None:
         """Nothing to forget: every step finds its neighbours afresh."""
 
-    def neighbourhood(self, liquid):
+    def neighbourhood(self, liquid: SPHLiquid) -> NDArray[np.float64]:
         """Sort the particles by grid cell (cells of ``h / 2``; a stable counting sort, the
         identity on already sorted particles) and compute neighbours, kernel gradients,
         densities, ``alpha_i`` and the walls in one pass (:meth:`DFSPHSolver.neighbourhood`).
@@ -107,7 +113,7 @@ class DFSPHStepper:
                                              liquid.boundary_set.arrays(), m.mass)
         return self.rho
 
-    def density(self, liquid) -> float:
+    def density(self, liquid: SPHLiquid) -> float:
         """Densities at the current positions (sorting the particles); returns the largest
         compression."""
         rho = self.neighbourhood(liquid)
@@ -121,7 +127,7 @@ class DFSPHStepper:
                 r[name] = r[name].copy()
             r["frozen"] = True
 
-    def step(self, liquid, dt: float):
+    def step(self, liquid: SPHLiquid, dt: float) -> tuple[float, float]:
         """One DFSPH step of ``dt`` seconds; returns ``(max |v|, max |a|)`` (m/s, m/s^2).
 
         When ``dt`` is a full step (at least :data:`FULL_STEP` of the step the liquid would
@@ -219,7 +225,7 @@ class DFSPHStepper:
                          "normals": b.sorted_normals},
         }
 
-    def wall_cap(self, liquid, v, cap: float, dt: float) -> float:
+    def wall_cap(self, liquid: SPHLiquid, v: np.ndarray, cap: float, dt: float) -> float:
         """The step cap after the wall condition: no particle within a spacing of the closest a
         wall constraint lets it come (:mod:`filters.sph.dfsph`) may approach that wall by more
         than :data:`WALL_CFL` ``* cfl`` spacings in a step (cfl 0.4: 0.14 spacings).
@@ -242,7 +248,7 @@ class DFSPHStepper:
             cap = min(cap, max(WALL_CFL * liquid.model.cfl * spacing / vn, 0.7 * dt))
         return cap
 
-    def step_cap(self, liquid, cap: float, dt: float, iterations: int) -> float:
+    def step_cap(self, liquid: SPHLiquid, cap: float, dt: float, iterations: int) -> float:
         """The step cap after a step of ``dt`` whose density solve took ``iterations``.
 
         The velocity CFL condition alone lets a tall resting column take ``max_dt`` steps,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -30,6 +31,9 @@ from .dfsph_step import MIN_DT, DFSPHStepper
 from .model import SPHModel, as_field, check_boxes, default_support_factor
 from .parameters import check_liquid_parameters
 from .wcsph import CELL_PAD, REACH, WCSPHStepper
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["SPHModel", "SPHLiquid", "default_support_factor", "ContainerCorrectionWarning"]
 
@@ -184,14 +188,21 @@ class SPHLiquid(Simulation):
         """What the caller can change when the simulation diverges (only settable parameters)."""
         return self._HINTS[self.model.solver]
 
-    def __init__(self, positions, velocities=None, *, spacing, boundary=None,
-                 rest_density=1000.0, kernel="cubic", support_factor=None, speed_of_sound=None,
-                 gamma=7.0, viscosity=0.05, boundary_viscosity=None, xsph=0.0,
-                 surface_tension=0.0, gravity=(0.0, 0.0, -9.81), external=None, cfl=0.4,
-                 max_dt=None, density_error_limit=0.1, domain=None, container=None,
-                 boundary_pressure="adami", skin=0.2, threads=None, solver="wcsph",
-                 max_density_error=1e-3, max_divergence_error=1e-2, max_iterations=100,
-                 kinematic_viscosity=None, initial_pressure=None):
+    def __init__(self, positions: ArrayLike, velocities: ArrayLike | None = None, *, spacing: float,
+                 boundary: BoundaryParticles | None = None, rest_density: float = 1000.0,
+                 kernel: str = "cubic", support_factor: float | None = None,
+                 speed_of_sound: float | None = None, gamma: float = 7.0, viscosity: float = 0.05,
+                 boundary_viscosity: float | None = None, xsph: float = 0.0,
+                 surface_tension: float = 0.0, gravity: ArrayLike = (0.0, 0.0, -9.81),
+                 external: object | None = None, cfl: float = 0.4, max_dt: float | None = None,
+                 density_error_limit: float = 0.1,
+                 domain: tuple[ArrayLike, ArrayLike] | None = None,
+                 container: tuple[ArrayLike, ArrayLike] | None = None,
+                 boundary_pressure: str = "adami", skin: float = 0.2, threads: int | None = None,
+                 solver: str = "wcsph", max_density_error: float = 1e-3,
+                 max_divergence_error: float = 1e-2, max_iterations: int = 100,
+                 kinematic_viscosity: float | None = None,
+                 initial_pressure: ArrayLike | None = None):
         (spacing, rest_density, support_factor, speed_of_sound, gamma, viscosity,
          boundary_viscosity, xsph, surface_tension, gravity, cfl, max_dt, density_error_limit,
          skin, threads, max_density_error, max_divergence_error, max_iterations,
@@ -390,7 +401,8 @@ class SPHLiquid(Simulation):
         b = self.boundary_set
         return BoundaryParticles(b.points, b.volumes, b.normals, b.velocities, b.friction)
 
-    def move_boundary(self, points=None, velocities=None, *, volumes=None, indices=None) -> None:
+    def move_boundary(self, points: ArrayLike | None = None, velocities: ArrayLike | None = None, *,
+                      volumes: ArrayLike | None = None, indices: ArrayLike | None = None) -> None:
         """Move (some of) the boundary particles before the next step (DFSPH).
 
         A rigid body or a deforming surface simulated elsewhere hands over its particles' new
@@ -420,7 +432,7 @@ class SPHLiquid(Simulation):
             raise ValueError("move_boundary needs solver='dfsph' (WCSPH's boundary is static)")
         self.boundary_set.move(points, velocities, volumes, indices)
 
-    def boundary_forces(self, indices=None) -> np.ndarray:
+    def boundary_forces(self, indices: ArrayLike | None = None) -> np.ndarray:
         """Force (N) the fluid exerted on boundary particles during the last step (DFSPH).
 
         Pressure (the density and divergence solves' pressures mirrored onto the boundary,
@@ -448,7 +460,7 @@ class SPHLiquid(Simulation):
         return boundary_forces(stepper.record, indices)
 
     # -- used by the steppers ---------------------------------------------------------------
-    def permute(self, order) -> None:
+    def permute(self, order: np.ndarray) -> None:
         """Re-order the particles (positions, velocities, ``id`` and the per-particle warm
         starts) so that particle ``k`` is the old particle ``order[k]``."""
         s = self.state
@@ -464,7 +476,7 @@ class SPHLiquid(Simulation):
             if name in s.extra and s.extra[name].shape == (x.shape[0],):
                 s.extra[name] = s.extra[name][order]
 
-    def note_density(self, rho) -> float:
+    def note_density(self, rho: np.ndarray) -> float:
         """Record the largest and mean compression of the densities ``rho`` (kg/m^3)."""
         ratio = rho / self.model.rest_density - 1.0
         self.density_error = max(float(ratio.max()), 0.0)
@@ -477,7 +489,7 @@ class SPHLiquid(Simulation):
         self._stepper.density(self)
         return self.note_density(self._stepper.rho)
 
-    def add_external(self, a, amax: float) -> float:
+    def add_external(self, a: np.ndarray, amax: float) -> float:
         """Add the external field's accelerations to ``a`` (N, 3); returns the new ``max |a|``."""
         if self._field is None:
             return amax

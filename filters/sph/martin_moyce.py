@@ -17,8 +17,12 @@ half-inches over ``a`` (1.11 = 2.5 in / 2.25 in).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["FRONT_T", "FRONT_Z", "HEIGHT_TAU", "HEIGHT_H", "surge_front", "column_height",
            "compare"]
@@ -42,7 +46,7 @@ def _kth_largest(values, k):
     return float(np.partition(values, values.shape[0] - k)[values.shape[0] - k])
 
 
-def surge_front(positions, spacing: float, depth: float) -> float:
+def surge_front(positions: ArrayLike, spacing: float, depth: float) -> float:
     """Leading edge of the surge (m from the column's wall at x = 0): the particle centre of
     the ``round(depth / spacing)``-th largest ``x`` (one particle per column across the tank's
     depth may run ahead as spray) plus half a spacing (a particle stands for a cube of side
@@ -51,7 +55,7 @@ def surge_front(positions, spacing: float, depth: float) -> float:
     return _kth_largest(x, round(depth / spacing)) + 0.5 * spacing
 
 
-def column_height(positions, spacing: float, depth: float) -> float:
+def column_height(positions: ArrayLike, spacing: float, depth: float) -> float:
     """Height (m) of the liquid at the column's wall: among the particles within one spacing of
     x = 0, the ``round(depth / spacing)``-th largest ``z`` plus half a spacing (at t = 0 the
     column's height)."""
@@ -62,7 +66,8 @@ def column_height(positions, spacing: float, depth: float) -> float:
     return _kth_largest(near, round(depth / spacing)) + 0.5 * spacing
 
 
-def compare(times, fronts, heights, a: float, g: float = 9.81, t_range=(0.8, 3.0)) -> dict:
+def compare(times: ArrayLike, fronts: ArrayLike, heights: ArrayLike, a: float, g: float = 9.81,
+            t_range: tuple[float, float] = (0.8, 3.0)) -> dict:
     """Relative errors of a simulated collapse against the tables.
 
     Parameters

@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..validation import check_finite_vector
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from numpy.typing import ArrayLike
+
+    from .boundary import BoundaryParticles
 
 __all__ = ["SPHModel", "default_support_factor", "check_boxes", "as_field"]
 
@@ -95,7 +103,10 @@ class SPHModel:
     max_iterations: int = 100
 
 
-def check_boxes(x, domain, container, boundary):
+def check_boxes(x: np.ndarray, domain: tuple[ArrayLike, ArrayLike] | None,
+                container: tuple[ArrayLike, ArrayLike] | None,
+                boundary: BoundaryParticles | None) -> tuple[tuple[tuple, tuple] | None,
+                                                             tuple[tuple, tuple] | None]:
     """Validate ``domain`` and ``container`` (``(lower, upper)`` boxes, m) against the positions
     ``x`` (N, 3); the domain defaults to the boundary particles' bounding box.  Returns both as
     tuples of tuples (or None)."""
@@ -122,7 +133,8 @@ def check_boxes(x, domain, container, boundary):
     return domain, container
 
 
-def as_field(external):
+def as_field(external: object | None) -> Callable[[np.ndarray, np.ndarray, float],
+                                                  np.ndarray] | None:
     """The external acceleration as a callable ``field(positions, velocities, time)``."""
     if external is None:
         return None

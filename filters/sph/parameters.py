@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 
@@ -10,16 +11,23 @@ from .boundary import BoundaryParticles
 from .model import default_support_factor
 from ..validation import check_choice, check_finite_vector, check_int, check_range
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 __all__ = ["check_liquid_parameters"]
 
 DFSPH_MAX_DT = 0.005  # s, default largest DFSPH step
 
 
-def check_liquid_parameters(*, spacing, boundary, rest_density, kernel, support_factor,
-                            speed_of_sound, gamma, viscosity, boundary_viscosity, xsph,
-                            surface_tension, gravity, cfl, max_dt, density_error_limit,
-                            boundary_pressure, skin, threads, solver, max_density_error,
-                            max_divergence_error, max_iterations, kinematic_viscosity):
+def check_liquid_parameters(*, spacing: float, boundary: BoundaryParticles | None,
+                            rest_density: float, kernel: str, support_factor: float | None,
+                            speed_of_sound: float | None, gamma: float, viscosity: float,
+                            boundary_viscosity: float | None, xsph: float, surface_tension: float,
+                            gravity: ArrayLike, cfl: float, max_dt: float | None,
+                            density_error_limit: float, boundary_pressure: str, skin: float,
+                            threads: int | None, solver: str, max_density_error: float,
+                            max_divergence_error: float, max_iterations: int,
+                            kinematic_viscosity: float | None) -> tuple:
     """Check every scalar parameter of :class:`~filters.sph.SPHLiquid` and fill its defaults.
 
     Returns

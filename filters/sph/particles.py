@@ -56,7 +56,7 @@ def sort_rows(tab, cnt):
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def integrate(x, v, a, dt):
-    """Symplectic Euler; returns max |v| after the step."""
+    """Symplectic Euler; returns max ``|v|`` after the step."""
     n = x.shape[0]
     vmax = np.zeros(n)
     for i in prange(n):

@@ -11,6 +11,7 @@ hydrostatic pressure and the drop's pool starts settled (:mod:`filters.sph.settl
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +20,10 @@ from ..validation import check_range
 from .boundary import box_boundary
 from .liquid import SPHLiquid, default_support_factor
 from .settle import hydrostatic_pressure, settle
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+    from typing import Any
 
 __all__ = ["dam_break_liquid", "drop_liquid", "MAX_PARTICLES", "SETTLE_TIME", "SETTLE_DAMPING"]
 
@@ -58,8 +63,10 @@ def _check_count(fluid, tank, spacing, layers=2):
             f"increase spacing")
 
 
-def dam_break_liquid(*, column_width=0.2, column_height=None, tank_length=None, depth=0.1,
-                     tank_height=None, spacing=0.01, free_slip=(), **sph_options) -> SPHLiquid:
+def dam_break_liquid(*, column_width: float = 0.2, column_height: float | None = None,
+                     tank_length: float | None = None, depth: float = 0.1,
+                     tank_height: float | None = None, spacing: float = 0.01,
+                     free_slip: Iterable[str] = (), **sph_options: Any) -> SPHLiquid:
     """A water column collapsing in a closed tank (the dam break of Martin & Moyce 1952).
 
     The column of width ``a = column_width`` (x) and height ``column_height`` (z, default ``2 a``)
@@ -127,9 +134,9 @@ def dam_break_liquid(*, column_width=0.2, column_height=None, tank_length=None, 
     return SPHLiquid(x, spacing=spacing, boundary=walls, **sph_options)
 
 
-def drop_liquid(*, tank_length=0.4, tank_width=0.4, tank_height=0.4, pool_depth=0.1,
-                drop_radius=0.06, drop_height=0.25, drop_speed=0.0, spacing=0.01,
-                **sph_options) -> SPHLiquid:
+def drop_liquid(*, tank_length: float = 0.4, tank_width: float = 0.4, tank_height: float = 0.4,
+                pool_depth: float = 0.1, drop_radius: float = 0.06, drop_height: float = 0.25,
+                drop_speed: float = 0.0, spacing: float = 0.01, **sph_options: Any) -> SPHLiquid:
     """A sphere of liquid falling into a resting pool in a closed tank.
 
     Parameters

@@ -15,15 +15,22 @@ particle moves by more than a ten-thousandth of a spacing in a step.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..validation import check_finite_vector, check_range
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from .liquid import SPHLiquid
+
 __all__ = ["hydrostatic_pressure", "settle"]
 
 
-def hydrostatic_pressure(positions, spacing: float, gravity=(0.0, 0.0, -9.81),
+def hydrostatic_pressure(positions: ArrayLike, spacing: float,
+                         gravity: ArrayLike = (0.0, 0.0, -9.81),
                          rest_density: float = 1000.0) -> np.ndarray:
     """Gauge pressure ``rho0 |g| depth`` (Pa) of particles in a liquid at rest.
 
@@ -72,7 +79,8 @@ def hydrostatic_pressure(positions, spacing: float, gravity=(0.0, 0.0, -9.81),
     return rest_density * gnorm * depth
 
 
-def settle(liquid, *, max_time: float = 2.0, tolerance: float = 1e-4, damping: float = 1.0) -> float:
+def settle(liquid: SPHLiquid, *, max_time: float = 2.0, tolerance: float = 1e-4,
+           damping: float = 1.0) -> float:
     """Let a DFSPH liquid come to rest in place, then start its clock again.
 
     Steps of the liquid's own size with the velocities set to zero after each (the

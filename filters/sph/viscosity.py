@@ -116,8 +116,10 @@ class ImplicitViscosity:
     def __init__(self):
         self._n = -1
 
-    def solve(self, v, x, dt, nu, nu_b, ntab, ncnt, fw, fsum, bvis, h, tolerance=1e-3,
-              max_iterations=100, bvv=None):
+    def solve(self, v: np.ndarray, x: np.ndarray, dt: float, nu: float, nu_b: float,
+              ntab: np.ndarray, ncnt: np.ndarray, fw: np.ndarray, fsum: np.ndarray,
+              bvis: np.ndarray, h: float, tolerance: float = 1e-3, max_iterations: int = 100,
+              bvv: np.ndarray | None = None) -> int:
         """Replace the velocities ``v`` (N, 3, m/s) by the solution of ``(I - dt L) v' = v``.
 
         Parameters

@@ -1,7 +1,7 @@
 """How much of a particle's kernel a solid occupies, as a function of its distance to a flat wall.
 
 A fluid particle at distance ``d`` from a flat solid half-space (``d < 0``: inside it) sees the
-solid fill the fraction
+solid fill the fraction::
 
     Phi(d) = integral over the half-space of W(|x - x_i|) dV,      Phi(h) = 0, Phi(0) = 1/2,
 
@@ -24,11 +24,15 @@ table gives the distance.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from ..kernels import kernel_id, kernel_value
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["half_space_fraction", "WallProfile", "equivalent_distance"]
 
@@ -45,7 +49,8 @@ def _cross_section(kernel: str, u: np.ndarray, h: float) -> np.ndarray:
     return 2.0 * math.pi * np.interp(np.abs(u), r, tail)
 
 
-def half_space_fraction(distance, support: float, kernel: str = "cubic"):
+def half_space_fraction(distance: ArrayLike, support: float,
+                        kernel: str = "cubic") -> NDArray[np.float64]:
     """``Phi(d)``: the fraction of a particle's kernel inside a flat solid at distance ``d``.
 
     Parameters

@@ -11,6 +11,8 @@ boundaries need the DFSPH solver).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numba
 import numpy as np
 
@@ -18,6 +20,9 @@ from ..binning import cell_keys, counting_sort
 from ..neighbors import bounds, grid_query_padded
 from ..simulation import SimulationUnstableError
 from . import forces, particles
+
+if TYPE_CHECKING:
+    from .liquid import SPHLiquid
 
 __all__ = ["WCSPHStepper", "CELL_PAD", "REACH"]
 
@@ -42,7 +47,7 @@ class WCSPHStepper:
         Tait ``B = rho0 c^2 / gamma`` (Pa).
     """
 
-    def __init__(self, liquid, kind: int, skin: float, stiffness: float):
+    def __init__(self, liquid: SPHLiquid, kind: int, skin: float, stiffness: float):
         n = liquid.state.n_points
         self.kind = kind
         self.skin = skin
@@ -60,7 +65,7 @@ class WCSPHStepper:
         """Drop the lists (they belong to a state that was replaced)."""
         self.tab = None
 
-    def ensure_lists(self, liquid) -> None:
+    def ensure_lists(self, liquid: SPHLiquid) -> None:
         """Make the neighbour lists valid for the current positions (Verlet lists with a skin).
 
         Lists hold every pair within ``h + skin`` of the positions at the last rebuild (the
@@ -119,7 +124,7 @@ class WCSPHStepper:
         self.bcapacity = max(best, 1) + 4
         particles.sort_rows(self.btab, self.bcnt)
 
-    def density(self, liquid):
+    def density(self, liquid: SPHLiquid) -> float:
         """Densities (kg/m^3) and Tait pressures (Pa, gauge) at the current positions; returns
         the largest compression."""
         m = liquid.model
@@ -130,7 +135,7 @@ class WCSPHStepper:
         return float(forces.tait_pressure(self.rho, m.rest_density, self.stiffness, m.gamma,
                                           self.p))
 
-    def step(self, liquid, dt: float):
+    def step(self, liquid: SPHLiquid, dt: float) -> tuple[float, float]:
         """One symplectic Euler step of ``dt`` seconds; returns ``(max |v|, max |a|)``."""
         s = liquid.state
         m = liquid.model

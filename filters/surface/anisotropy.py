@@ -59,7 +59,7 @@ by one task, so the output is bitwise identical for any number of threads.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -70,6 +70,11 @@ from ..neighbors import NeighborSearch
 from ..validation import check_choice, check_int, check_points, check_radii, check_range
 from .covariance import (SMOOTHING_RAMP, anisotropy_on_lists, count_gate, curvature_gate,
                          kernel_frame)
+
+if TYPE_CHECKING:
+    from typing import Any
+
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["anisotropic_kernels", "kernel_matrices", "KernelSet", "kernel_axes", "DEFAULTS", "MAX_AXIS_H",
            "check_anisotropy"]
@@ -276,10 +281,13 @@ def _grid_cells(positions, search, backend):
     return None
 
 
-def check_anisotropy(support_r: float, *, neighbor_radius_r=DEFAULTS["neighbor_radius_r"],
-                     stretch=DEFAULTS["stretch"], min_neighbors=DEFAULTS["min_neighbors"],
-                     smoothing=DEFAULTS["smoothing"], layer_band_r=DEFAULTS["layer_band_r"],
-                     max_axis_r=DEFAULTS["max_axis_r"], isotropy=DEFAULTS["isotropy"]) -> dict:
+def check_anisotropy(support_r: float, *, neighbor_radius_r: float = DEFAULTS["neighbor_radius_r"],
+                     stretch: float = DEFAULTS["stretch"],
+                     min_neighbors: int = DEFAULTS["min_neighbors"],
+                     smoothing: float = DEFAULTS["smoothing"],
+                     layer_band_r: float = DEFAULTS["layer_band_r"],
+                     max_axis_r: float | None = DEFAULTS["max_axis_r"],
+                     isotropy: float = DEFAULTS["isotropy"]) -> dict:
     """Validate the options of :func:`anisotropic_kernels` for a kernel support ``support_r``.
 
     Returns
@@ -326,8 +334,8 @@ class KernelSet(NamedTuple):
     anisotropy: np.ndarray
 
 
-def kernel_matrices(positions, radius, *, support_r: float = 4.0, backend: str = "auto",
-                    targets: int | None = None, **options) -> KernelSet:
+def kernel_matrices(positions: np.ndarray, radius: ArrayLike, *, support_r: float = 4.0,
+                    backend: str = "auto", targets: int | None = None, **options: Any) -> KernelSet:
     """:func:`anisotropic_kernels` with everything the splat needs (:class:`KernelSet`).
 
     Same parameters as :func:`anisotropic_kernels` (``return_volumes`` aside); the volumes are
@@ -371,8 +379,9 @@ def kernel_matrices(positions, radius, *, support_r: float = 4.0, backend: str =
     return out
 
 
-def anisotropic_kernels(positions, radius, *, support_r: float = 4.0,
-                        return_volumes: bool = False, backend: str = "auto", **options):
+def anisotropic_kernels(positions: np.ndarray, radius: ArrayLike, *, support_r: float = 4.0,
+                        return_volumes: bool = False, backend: str = "auto",
+                        **options: Any) -> tuple[NDArray[np.float64], ...]:
     """Smoothed kernel centres and anisotropy matrices (Yu & Turk 2013).
 
     Parameters
@@ -445,7 +454,7 @@ def anisotropic_kernels(positions, radius, *, support_r: float = 4.0,
     return (k.centres, k.G, k.volumes) if return_volumes else (k.centres, k.G)
 
 
-def kernel_axes(G):
+def kernel_axes(G: np.ndarray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Semi-axes (m) and directions of the kernel ellipsoids ``{r : |G r| <= 1}``.
 
     Parameters

@@ -8,6 +8,7 @@ made it; the particles are binned by block as for the splat (:mod:`filters.surfa
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -18,6 +19,9 @@ from ..validation import check_points
 from .blocks import bin_by_block
 from .grid import BLOCK_LIMIT, check_block_range, pack_key
 from .splat import check_splat_args
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["interpolate_attributes"]
 
@@ -111,8 +115,10 @@ def _shepard(X, P, H, V, start, table, ranks, reach, bsz, kernel, blob_a, blob_e
     return out
 
 
-def interpolate_attributes(points, positions, radius, values, *, cell_size: float,
-                           kernel: str = "sph", support_r=None, blobbiness: float = 4.0):
+def interpolate_attributes(points: np.ndarray, positions: np.ndarray, radius: ArrayLike,
+                           values: ArrayLike, *, cell_size: float, kernel: str = "sph",
+                           support_r: float | None = None,
+                           blobbiness: float = 4.0) -> NDArray[np.float64]:
     """Kernel-weighted (Shepard) average of particle values at arbitrary points.
 
     ``u(x) = sum_j w_j u_j / sum_j w_j`` with ``w_j`` the kernel of particle ``j`` at ``x``

@@ -21,12 +21,20 @@ identical for any number of threads.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit, prange
 
 from ..binning import counting_sort, index_keys, lookup
 from .grid import (SparseGrid, block_keys, check_budget, corner_index, pack_key, unpack_key,
                    unpack_keys)
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+    from typing import Any
+
+    from numpy.typing import NDArray
 
 __all__ = ["bin_by_block", "grown_block_box", "classify_and_evaluate", "evaluate_rounds",
            "blocks_meeting_box"]
@@ -38,7 +46,9 @@ def _ranks_of(table, ranks, keys, out):
         out[t] = lookup(table, ranks, keys[t])
 
 
-def bin_by_block(positions, cell_size: float, block_size: int, sort_blocks: bool = False):
+def bin_by_block(positions: np.ndarray, cell_size: float, block_size: int,
+                 sort_blocks: bool = False) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                                     NDArray[np.int64], NDArray[np.int32]]:
     """Bin points by the block that holds them.
 
     Parameters
@@ -88,7 +98,8 @@ def grown_block_box(key, bsz):
     return bx, by, bz, lox, loy, loz, hix, hiy, hiz
 
 
-def blocks_meeting_box(keys, block_size: int, cell_size: float, lower, upper):
+def blocks_meeting_box(keys: np.ndarray, block_size: int, cell_size: float, lower: np.ndarray,
+                       upper: np.ndarray) -> NDArray[np.bool_]:
     """Which blocks, grown by one voxel, meet the box ``[lower, upper]`` (m).
 
     Parameters
@@ -112,10 +123,12 @@ def blocks_meeting_box(keys, block_size: int, cell_size: float, lower, upper):
     return np.all((hi >= np.asarray(lower)) & (lo <= np.asarray(upper)), axis=1)
 
 
-def classify_and_evaluate(active, *, block_size: int, cell_size: float, max_bytes: int,
-                          inside_value: float, outside_value: float, evaluate,
-                          corner_values=None, inside_margin: float = 0.0, upper_bounds=None,
-                          outside=None) -> SparseGrid:
+def classify_and_evaluate(active: np.ndarray, *, block_size: int, cell_size: float, max_bytes: int,
+                          inside_value: float, outside_value: float, evaluate: Callable[..., Any],
+                          corner_values: Callable[..., Any] | None = None,
+                          inside_margin: float = 0.0,
+                          upper_bounds: Callable[..., Any] | None = None,
+                          outside: Callable[..., Any] = None) -> SparseGrid:
     """Mark candidate blocks inside or outside where that is certain, evaluate the rest.
 
     Parameters
@@ -166,8 +179,9 @@ def classify_and_evaluate(active, *, block_size: int, cell_size: float, max_byte
                            outside_value, max_bytes)
 
 
-def evaluate_rounds(active, states, evaluate, cell_size, bsz, inside_value, outside_value,
-                    max_bytes) -> SparseGrid:
+def evaluate_rounds(active: np.ndarray, states: np.ndarray, evaluate: Callable[..., Any],
+                    cell_size: float, bsz: int, inside_value: float, outside_value: float,
+                    max_bytes: int) -> SparseGrid:
     """Evaluate the candidate blocks still undecided, then those the face check flags, round by
     round, and return the grid.
 

@@ -9,17 +9,21 @@ plane, facing away from the kept side, must follow (reversed boundary edges of t
 so that mesh + cap is closed again. Point data are interpolated linearly at the new vertices.
 Cutting by the six planes of a box one after the other (each cap cut by the next planes like
 any face) gives the surface of a liquid cut exactly at the walls of its tank; the caps are
-triangulated by the caller (``pipeline.liquid.ClipBox``).
+triangulated by the caller (``pipeline.surface.liquid.ClipBox``).
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from ..validation import check_int, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["clip_half_space", "cap_loops", "refill_runs", "wall_constraints", "WALL_TOLERANCE"]
 
@@ -106,8 +110,10 @@ def _plane_edges(tris, on_plane):
     return out[:m].copy()
 
 
-def clip_half_space(points, triangles, axis: int, value: float, keep: int, *, data=None,
-                    eps: float = 0.0):
+def clip_half_space(points: np.ndarray, triangles: np.ndarray, axis: int, value: float, keep: int,
+                    *, data: np.ndarray | None = None,
+                    eps: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.int64],
+                                               NDArray[np.float64] | None, NDArray[np.int64]]:
     """Cut a closed triangle mesh by the plane ``x_axis = value``.
 
     Parameters
@@ -235,7 +241,8 @@ def _chain(edges, n):
     return order[:m].copy(), starts[:loops + 1].copy()
 
 
-def cap_loops(points, edges, axis: int, lower, upper):
+def cap_loops(points: np.ndarray, edges: np.ndarray, axis: int, lower: np.ndarray,
+              upper: np.ndarray) -> tuple[list[NDArray[np.int64]], dict]:
     """The loops of a cap's boundary ``edges`` on the plane normal to ``axis``, with the runs
     of points along the box's edges (points exactly on a second wall, as the cuts put them)
     reduced to their ends.
@@ -289,7 +296,7 @@ def cap_loops(points, edges, axis: int, lower, upper):
     return loops, runs
 
 
-def refill_runs(triangles, runs):
+def refill_runs(triangles: np.ndarray, runs: dict) -> NDArray[np.int64]:
     """Put the removed points of :func:`cap_loops` back: the cap triangle with the directed edge
     ``(u, w)`` of a run becomes a fan from its third vertex over ``u, v_1, ..., v_k, w`` (run
     after run, so a triangle with two such edges is split twice).
@@ -331,7 +338,8 @@ def refill_runs(triangles, runs):
     return np.asarray([t for t, ok in zip(tris, alive) if ok], np.int64).reshape(-1, 3)
 
 
-def wall_constraints(points, triangles, lower, upper):
+def wall_constraints(points: np.ndarray, triangles: np.ndarray, lower: np.ndarray,
+                     upper: np.ndarray) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Which vertices lie on the walls of the box ``[lower, upper]`` and which triangles are
     the flat faces on them (a mesh cut by :func:`clip_half_space`, whose cut vertices lie on
     the walls exactly, up to rounding: vtkPolyData keeps float32 points, and VTK's smoothing

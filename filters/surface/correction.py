@@ -33,7 +33,7 @@ particle set gives the same surface in every frame.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -43,6 +43,9 @@ from ..geometry import Box, Shape
 from ..neighbors import NeighborSearch
 from ..validation import check_int, check_points, check_range
 from .clip import WALL_TOLERANCE, wall_constraints
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["correct_volume", "CorrectionInfo", "vertex_components", "FACING"]
 
@@ -105,7 +108,7 @@ def _labels(tris, nverts):
     return labels, k
 
 
-def vertex_components(triangles, nverts: int):
+def vertex_components(triangles: np.ndarray, nverts: int) -> tuple[NDArray[np.int64], int]:
     """Connected components of a triangle mesh's vertices.
 
     Parameters
@@ -315,10 +318,11 @@ def _check(points, triangles, particles, volumes, shape, wall_band, max_offset, 
             tolerance)
 
 
-def correct_volume(points, triangles, particles, volumes, *, shape: Shape | None = None,
-                   wall_band: float = 0.0, max_offset: float = math.inf,
-                   max_shrink: float | None = None, link: float | None = None,
-                   iterations: int = 10, tolerance: float = 1e-9):
+def correct_volume(points: np.ndarray, triangles: np.ndarray, particles: np.ndarray,
+                   volumes: ArrayLike, *, shape: Shape | None = None, wall_band: float = 0.0,
+                   max_offset: float = math.inf, max_shrink: float | None = None,
+                   link: float | None = None, iterations: int = 10,
+                   tolerance: float = 1e-9) -> tuple[NDArray[np.float64], CorrectionInfo]:
     """Offset every connected component of a closed surface so it encloses its particles' volume.
 
     Parameters

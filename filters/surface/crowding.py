@@ -52,7 +52,7 @@ def pair_work_limit() -> float:
     return _cores() * PAIRS_PER_SECOND * WORK_SECONDS
 
 
-def check_crowding(positions, support: float, what: str = "the particles") -> None:
+def check_crowding(positions: np.ndarray, support: float, what: str = "the particles") -> None:
     """Raise :class:`CrowdingError` if ``positions`` crowd kernel supports of ``support`` m.
 
     Parameters

@@ -46,6 +46,7 @@ a consistency pass evaluates every skipped block whose neighbours disagree with 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -56,6 +57,9 @@ from ..validation import check_choice, check_int, check_points, check_range
 from .blocks import bin_by_block, blocks_meeting_box, classify_and_evaluate, grown_block_box
 from .grid import (DEFAULT_MAX_BYTES, DenseField, SparseGrid, check_block_range, check_budget,
                    pack_key, unpack_key)
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "ANISOTROPIC_KERNELS",
@@ -427,11 +431,11 @@ def _check_inputs(centres, G, amplitude, cell_size, kernel, iso, block_size, blo
     return centres, G, amplitude, kernel, cell_size, iso, block_size, blobbiness, max_bytes
 
 
-def ellipsoid_grid(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso=None,
-                   block_size: int = 8, blobbiness: float = 4.0,
-                   max_bytes: int = DEFAULT_MAX_BYTES, skip_interior: bool = True,
-                   evaluate_all: bool = False, trusted: bool = False,
-                   domain=None) -> SparseGrid:
+def ellipsoid_grid(centres: np.ndarray, G: np.ndarray, amplitude: ArrayLike, cell_size: float, *,
+                   kernel: str = "sph", iso: float | None = None, block_size: int = 8,
+                   blobbiness: float = 4.0, max_bytes: int = DEFAULT_MAX_BYTES,
+                   skip_interior: bool = True, evaluate_all: bool = False, trusted: bool = False,
+                   domain: tuple[ArrayLike, ArrayLike] | None = None) -> SparseGrid:
     """Implicit values of ellipsoidal kernels on the blocks of the voxel lattice near the surface.
 
     Parameters as in :func:`splat_ellipsoids_sparse`; ``evaluate_all`` evaluates every
@@ -509,8 +513,9 @@ def ellipsoid_grid(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso
         outside=lambda bound: bound < iso)
 
 
-def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "sph",
-                            iso=None, block_size: int = 8, blobbiness: float = 4.0,
+def splat_ellipsoids_sparse(centres: np.ndarray, G: np.ndarray, amplitude: ArrayLike,
+                            cell_size: float, *, kernel: str = "sph", iso: float | None = None,
+                            block_size: int = 8, blobbiness: float = 4.0,
                             skip_interior: bool = True,
                             max_bytes: int = DEFAULT_MAX_BYTES) -> SparseGrid:
     """Splat ellipsoidal kernels onto the blocks of the voxel lattice the surface passes near.
@@ -551,9 +556,11 @@ def splat_ellipsoids_sparse(centres, G, amplitude, cell_size, *, kernel: str = "
                           skip_interior=skip_interior)
 
 
-def splat_ellipsoids_dense(centres, G, amplitude, cell_size, *, kernel: str = "sph", iso=None,
+def splat_ellipsoids_dense(centres: np.ndarray, G: np.ndarray, amplitude: ArrayLike,
+                           cell_size: float, *, kernel: str = "sph", iso: float | None = None,
                            block_size: int = 8, blobbiness: float = 4.0,
-                           max_bytes: int = DEFAULT_MAX_BYTES, domain=None) -> DenseField:
+                           max_bytes: int = DEFAULT_MAX_BYTES,
+                           domain: tuple[ArrayLike, ArrayLike] | None = None) -> DenseField:
     """Like :func:`splat_ellipsoids_sparse` but every reachable voxel evaluated, returned as a
     dense box (:class:`filters.surface.grid.DenseField`) covering the evaluated blocks plus one
     outside voxel layer; voxels no kernel reaches hold ``iso``; ``domain`` as in

@@ -33,11 +33,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
 from ..binning import EMPTY_KEY, index_keys, insert_key, lookup
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = [
     "DEFAULT_MAX_BYTES",
@@ -78,7 +82,7 @@ class GridTooLargeError(ValueError):
     """A grid would need more memory than the configured budget ``max_bytes`` allows."""
 
 
-def format_bytes(nbytes) -> str:
+def format_bytes(nbytes: float) -> str:
     """A byte count for messages: ``"512 bytes"``, ``"1.5 KiB"``, ``"3.052 MiB"``, ``"4 GiB"``
     (binary units, 4 significant digits; never rounds a non-zero size to 0)."""
     nbytes = float(nbytes)
@@ -406,7 +410,7 @@ class SparseGrid:
         """True when no block is evaluated (there is no surface)."""
         return self.keys.size == 0
 
-    def block_table(self):
+    def block_table(self) -> tuple[np.ndarray, np.ndarray]:
         """Hash index of the blocks (see :func:`filters.binning.lookup`): the rank of an
         evaluated block, -2 for an inside block, -1 (absent) for an outside one."""
         keys = np.concatenate([self.keys, self.inside_keys])
@@ -416,7 +420,7 @@ class SparseGrid:
         values = np.where(values >= m, -2, values)
         return table, values
 
-    def bricks(self, group: int = 4):
+    def bricks(self, group: int = 4) -> NDArray[np.int64]:
         """Brick coordinates that together cover every cell the surface can cross.
 
         Parameters
@@ -472,8 +476,10 @@ class SparseGrid:
                                     signs, self.inside_value < 0.0, self.outside_value < 0.0)
         return out
 
-    def fill_bricks(self, bricks: np.ndarray, group: int = 4, table=None, crossing: bool = False,
-                    out: np.ndarray | None = None):
+    def fill_bricks(self, bricks: np.ndarray, group: int = 4,
+                    table: tuple[np.ndarray, np.ndarray] | None = None, crossing: bool = False,
+                    out: np.ndarray | None = None
+                    ) -> NDArray[np.float32] | tuple[NDArray[np.float32], NDArray[np.bool_]]:
         """Dense values of the given bricks.
 
         Parameters
@@ -512,7 +518,8 @@ class SparseGrid:
                      np.float32(self.inside_value), np.float32(self.outside_value))
         return (out, cross) if crossing else out
 
-    def to_dense(self, index_lo=None, index_hi=None, max_bytes: int = DEFAULT_MAX_BYTES) -> DenseField:
+    def to_dense(self, index_lo: np.ndarray | None = None, index_hi: np.ndarray | None = None,
+                 max_bytes: int = DEFAULT_MAX_BYTES) -> DenseField:
         """The dense equivalent of the grid over a box of the voxel lattice.
 
         Parameters

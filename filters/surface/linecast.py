@@ -23,6 +23,7 @@ Measured on the main job's frames: ``benchmarks/bench_across_frames.py``.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -30,6 +31,9 @@ from numba import njit, prange
 from ..binning import MAX_CELLS, counting_sort
 from ..elastic.topology import check_triangles
 from ..validation import check_points, check_range
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["normal_offsets", "TriangleGrid", "EDGE_SLACK", "CELL_OVER_REACH"]
 
@@ -403,7 +407,7 @@ class TriangleGrid:
         the grid would exceed ``filters.binning.MAX_CELLS`` cells).
     """
 
-    def __init__(self, vertices, triangles, reach: float, *,
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, reach: float, *,
                  cell_over_reach: float = CELL_OVER_REACH):
         self.vertices = check_points("vertices", vertices)
         self.triangles = np.ascontiguousarray(
@@ -429,7 +433,8 @@ class TriangleGrid:
         self.items = owner[order]
         self.corner_edges = _corner_edges(V, self.triangles)
 
-    def offsets(self, points, directions, *, only=None):
+    def offsets(self, points: np.ndarray, directions: np.ndarray, *,
+                only: np.ndarray | None = None) -> NDArray[np.float64]:
         """:func:`normal_offsets` of ``points`` along ``directions`` to this mesh.
 
         Parameters
@@ -459,8 +464,9 @@ class TriangleGrid:
         return out
 
 
-def normal_offsets(points, directions, vertices, triangles, reach: float, *,
-                   cell_over_reach: float = CELL_OVER_REACH):
+def normal_offsets(points: np.ndarray, directions: np.ndarray, vertices: np.ndarray,
+                   triangles: np.ndarray, reach: float, *,
+                   cell_over_reach: float = CELL_OVER_REACH) -> NDArray[np.float64]:
     """Signed distance along ``directions`` from every point to a triangle mesh, within ``reach``.
 
     Parameters

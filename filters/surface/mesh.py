@@ -9,11 +9,15 @@ characteristic, connected components).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from ..binning import EMPTY_KEY, probe
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["merge_coincident", "piece_flags", "stitch", "MeshStats", "mesh_stats"]
 
@@ -49,7 +53,8 @@ def _merge(bits):
     return remap, first[:count].copy()
 
 
-def merge_coincident(points: np.ndarray, triangles: np.ndarray):
+def merge_coincident(points: np.ndarray,
+                     triangles: np.ndarray) -> tuple[np.ndarray, NDArray[np.int64]]:
     """Merge points with bitwise equal coordinates and drop triangles that collapse.
 
     Parameters
@@ -310,7 +315,7 @@ def piece_flags(points, starts, lo, hi):
 
 
 def stitch(points: np.ndarray, triangles: np.ndarray, flags: np.ndarray, *,
-           reverse: bool = True):
+           reverse: bool = True) -> tuple[NDArray[np.float32], np.ndarray]:
     """Merge points that may be duplicated (``flags``) by exact coordinates, in place.
 
     Both inputs are overwritten: the merged points are compacted to the front of ``points``

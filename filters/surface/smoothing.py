@@ -25,6 +25,7 @@ measurements behind the defaults are in ``benchmarks/results/surface_notes.md``.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -33,10 +34,14 @@ from ..binning import fitting_cells, sort_into_cells
 from ..elastic.topology import check_triangles
 from ..validation import check_int, check_points, check_range
 
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
 __all__ = ["vertex_neighbors", "feature_weights", "weighted_laplacian", "smooth_surface"]
 
 
-def vertex_neighbors(triangles, n_vertices: int):
+def vertex_neighbors(triangles: np.ndarray,
+                     n_vertices: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Edge neighbours of every vertex of a triangle mesh as CSR arrays.
 
     Parameters
@@ -146,8 +151,9 @@ def _flat_fullness(spacing, R):
     return float(_raw_fullness(np.array([[0.0, 0.0, 0.5 * spacing]]), lat, R)[0])
 
 
-def feature_weights(vertices, positions, radius: float, *, reach_r: float = 8.0,
-                    low: float = 0.5, high: float = 1.0):
+def feature_weights(vertices: np.ndarray, positions: np.ndarray, radius: float, *,
+                    reach_r: float = 8.0, low: float = 0.5,
+                    high: float = 1.0) -> NDArray[np.float64]:
     """Per-vertex smoothing weights in [0, 1] from the fullness of the particle neighbourhood.
 
     Parameters
@@ -212,8 +218,9 @@ def _sweeps(x, offsets, neighbors, step, free, iterations):
     return y
 
 
-def weighted_laplacian(vertices, triangles, weights, *, iterations: int = 25,
-                       beta: float = 1.0, free=None):
+def weighted_laplacian(vertices: np.ndarray, triangles: np.ndarray, weights: np.ndarray, *,
+                       iterations: int = 25, beta: float = 1.0,
+                       free: np.ndarray | None = None) -> NDArray[np.float64]:
     """``iterations`` Jacobi sweeps ``v <- v + beta w_v (mean of edge neighbours - v)``.
 
     Parameters
@@ -259,9 +266,10 @@ def weighted_laplacian(vertices, triangles, weights, *, iterations: int = 25,
     return _sweeps(vertices, offsets, neighbors, beta * w, free, iterations)
 
 
-def smooth_surface(vertices, triangles, positions, radius: float, *, iterations: int = 25,
-                   beta: float = 1.0, reach_r: float = 8.0, low: float = 0.5,
-                   high: float = 1.0, free=None):
+def smooth_surface(vertices: np.ndarray, triangles: np.ndarray, positions: np.ndarray,
+                   radius: float, *, iterations: int = 25, beta: float = 1.0, reach_r: float = 8.0,
+                   low: float = 0.5, high: float = 1.0,
+                   free: np.ndarray | None = None) -> NDArray[np.float64]:
     """:func:`feature_weights` then :func:`weighted_laplacian` (see the module docstring;
     ``free`` as there).
 

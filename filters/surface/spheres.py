@@ -382,10 +382,10 @@ def _evaluate_sum(targets, out, first, bsz, P, H, A, start, table, ranks, reach,
                     buf[mz, my, mx] = iso - acc
 
 
-def sphere_grid(positions, radii, cell_size: float, *, kernel: str, support_r: float,
-                iso: float, block_size: int, blobbiness: float, max_bytes: int,
+def sphere_grid(positions: np.ndarray, radii: np.ndarray, cell_size: float, *, kernel: str,
+                support_r: float, iso: float, block_size: int, blobbiness: float, max_bytes: int,
                 skip_interior: bool = True, evaluate_all: bool = False,
-                domain=None) -> SparseGrid:
+                domain: tuple[np.ndarray, np.ndarray] | None = None) -> SparseGrid:
     """Implicit values of spherical kernels on the blocks of the voxel lattice near the surface.
 
     Parameters

@@ -18,6 +18,7 @@ bitwise identical for any number of threads.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,14 @@ from .spheres import sphere_grid
 from .volumes import ellipsoid_volumes, stretched_gain
 from .walls import WALL_MARGIN_R, check_walls, grow_walls, mirror_ghosts, mirror_matrices
 
+if TYPE_CHECKING:
+    from collections.abc import Collection
+    from typing import Any
+
+    from numpy.typing import ArrayLike
+
+    from ..geometry import Box
+
 __all__ = [
     "GridTooLargeError",
     "splat_sparse",
@@ -43,8 +52,10 @@ __all__ = [
 ]
 
 
-def check_splat_args(positions, radius, cell_size, kernel, support_r, iso, block_size,
-                     blobbiness, max_bytes, kernels=SPLAT_KERNELS, iso_defaults=None):
+def check_splat_args(positions: ArrayLike, radius: ArrayLike, cell_size: float, kernel: str,
+                     support_r: float | None, iso: float | None, block_size: int, blobbiness: float,
+                     max_bytes: int, kernels: Collection[str] = SPLAT_KERNELS,
+                     iso_defaults: dict[str, float] | None = None) -> tuple:
     """Validate the common arguments of the splats; defaults filled in per kernel.
 
     Returns
@@ -80,9 +91,11 @@ def check_splat_args(positions, radius, cell_size, kernel, support_r, iso, block
     return positions, radii, kernel, cell_size, support_r, iso, block_size, blobbiness, max_bytes
 
 
-def splat_sparse(positions, radius, cell_size, *, kernel: str = "sph", support_r=None, iso=None,
-                 block_size: int = 8, blobbiness: float = 4.0, skip_interior: bool = True,
-                 max_bytes: int = DEFAULT_MAX_BYTES, walls=None) -> SparseGrid:
+def splat_sparse(positions: np.ndarray, radius: ArrayLike, cell_size: float, *, kernel: str = "sph",
+                 support_r: float | None = None, iso: float | None = None, block_size: int = 8,
+                 blobbiness: float = 4.0, skip_interior: bool = True,
+                 max_bytes: int = DEFAULT_MAX_BYTES,
+                 walls: Box | tuple[ArrayLike, ArrayLike] | None = None) -> SparseGrid:
     """Splat particles onto the blocks of the voxel lattice that the surface passes near.
 
     Parameters
@@ -150,9 +163,10 @@ def _check_dense_budget(positions, cell_size, block_size, max_bytes, extent_m):
                      f"a dense grid of about {ext.astype(int).tolist()} voxels")
 
 
-def splat_dense(positions, radius, cell_size, *, kernel: str = "sph", support_r=None, iso=None,
-                block_size: int = 8, blobbiness: float = 4.0,
-                max_bytes: int = DEFAULT_MAX_BYTES, walls=None) -> DenseField:
+def splat_dense(positions: np.ndarray, radius: ArrayLike, cell_size: float, *, kernel: str = "sph",
+                support_r: float | None = None, iso: float | None = None, block_size: int = 8,
+                blobbiness: float = 4.0, max_bytes: int = DEFAULT_MAX_BYTES,
+                walls: Box | tuple[ArrayLike, ArrayLike] | None = None) -> DenseField:
     """Splat particles onto a dense box of the voxel lattice: every reachable voxel evaluated.
 
     Same parameters as :func:`splat_sparse`. The box covers every voxel within the particles'
@@ -248,11 +262,12 @@ def _check_anisotropic(positions, radius, cell_size, kernel, support_r, iso, blo
     return args
 
 
-def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph",
-                             support_r=None, iso=None, block_size: int = 8,
-                             blobbiness: float = 4.0, skip_interior: bool = True,
-                             max_bytes: int = DEFAULT_MAX_BYTES, walls=None,
-                             **anisotropy) -> SparseGrid:
+def splat_sparse_anisotropic(positions: np.ndarray, radius: ArrayLike, cell_size: float, *,
+                             kernel: str = "sph", support_r: float | None = None,
+                             iso: float | None = None, block_size: int = 8, blobbiness: float = 4.0,
+                             skip_interior: bool = True, max_bytes: int = DEFAULT_MAX_BYTES,
+                             walls: Box | tuple[ArrayLike, ArrayLike] | None = None,
+                             **anisotropy: Any) -> SparseGrid:
     """Particles -> implicit field with anisotropic kernels (Yu & Turk 2013), sparse grid.
 
     A drop-in for :func:`splat_sparse` (same first parameters, same output):
@@ -299,10 +314,12 @@ def splat_sparse_anisotropic(positions, radius, cell_size, *, kernel: str = "sph
                           domain=_domain(walls, radii))
 
 
-def splat_dense_anisotropic(positions, radius, cell_size, *, kernel: str = "sph",
-                            support_r=None, iso=None, block_size: int = 8,
-                            blobbiness: float = 4.0, max_bytes: int = DEFAULT_MAX_BYTES,
-                            walls=None, **anisotropy) -> DenseField:
+def splat_dense_anisotropic(positions: np.ndarray, radius: ArrayLike, cell_size: float, *,
+                            kernel: str = "sph", support_r: float | None = None,
+                            iso: float | None = None, block_size: int = 8, blobbiness: float = 4.0,
+                            max_bytes: int = DEFAULT_MAX_BYTES,
+                            walls: Box | tuple[ArrayLike, ArrayLike] | None = None,
+                            **anisotropy: Any) -> DenseField:
     """Dense counterpart of :func:`splat_sparse_anisotropic` (a drop-in for
     :func:`splat_dense`); same parameters, returns a
     :class:`filters.surface.grid.DenseField`."""

@@ -31,6 +31,7 @@ Measurements behind it: ``benchmarks/results/splash_motion_notes.md`` and
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -42,11 +43,19 @@ from .clip import wall_constraints
 from .linecast import TriangleGrid, normal_offsets
 from .smoothing import vertex_neighbors
 
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike, NDArray
+
 __all__ = ["normal_offsets", "smooth_across_frames", "follow_particles_across_frames",
            "vertex_normals"]
 
-def smooth_across_frames(points, triangles, others, weights, reach: float, *, normals=None,
-                         sweeps: int = 10, fixed=None):
+def smooth_across_frames(points: np.ndarray, triangles: np.ndarray,
+                         others: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                         weights: Sequence[float], reach: float, *,
+                         normals: np.ndarray | None = None, sweeps: int = 10,
+                         fixed: np.ndarray | None = None) -> NDArray[np.float64]:
     """Vertices of one frame's surface moved along their normals toward neighbouring frames'.
 
     Parameters
@@ -127,9 +136,13 @@ def smooth_across_frames(points, triangles, others, weights, reach: float, *, no
     return p + offset[:, None] * n
 
 
-def follow_particles_across_frames(points, triangles, positions, neighbours, weights,
-                                  radius: float, *, cell_size: float | None = None, box=None,
-                                  reach_r: float = 1.0, sweeps: int = 10):
+def follow_particles_across_frames(points: np.ndarray, triangles: np.ndarray, positions: np.ndarray,
+                                   neighbours: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                              np.ndarray]],
+                                   weights: Sequence[float], radius: float, *,
+                                   cell_size: float | None = None,
+                                   box: tuple[ArrayLike, ArrayLike] | None = None,
+                                   reach_r: float = 1.0, sweeps: int = 10) -> NDArray[np.float64]:
     """:func:`smooth_across_frames` with the vertices carried to the other frames by particles.
 
     Parameters
@@ -214,7 +227,7 @@ def _smooth_offsets(offset, starts, neighbors, hold, sweeps):
     return a
 
 
-def vertex_normals(points, triangles):
+def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> NDArray[np.float64]:
     """Area-weighted unit vertex normals of a triangle mesh (outward for an outward-oriented
     closed mesh); a vertex of no triangle, or of triangles of zero area only, gets ``(0, 0,
     0)`` (it then does not move in :func:`smooth_across_frames`).

@@ -21,12 +21,19 @@ do.  Compared with marching cubes the mesh has about twice the triangles (and th
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit, prange
 
 from ..simplices import CORNER_OFFSETS, KUHN_DIRECTIONS, KUHN_TETS
 from ..validation import check_int
 from .mesh import piece_flags, stitch
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+
+    from .grid import SparseGrid
 
 __all__ = ["tile_boxes", "contour_tiles", "stitch_tiles", "TetraPieces", "contour_grid",
            "contour_array"]
@@ -233,7 +240,7 @@ def _fill_tiles(values, boxes, origins, iso, tets, dirs, dir_corner, tri_count, 
                    vid)
 
 
-def tile_boxes(shape, tile: int = 32, which: int = 0):
+def tile_boxes(shape: tuple[int, int, int], tile: int = 32, which: int = 0) -> NDArray[np.int64]:
     """Cut the cells of an array of voxel ``shape = (nz, ny, nx)`` into tiles of at most
     ``tile`` cells per edge.
 
@@ -253,7 +260,9 @@ def tile_boxes(shape, tile: int = 32, which: int = 0):
     return np.array(boxes, np.int64).reshape(-1, 7)
 
 
-def contour_tiles(values, boxes, origins, iso=0.0):
+def contour_tiles(values: np.ndarray, boxes: np.ndarray, origins: np.ndarray,
+                  iso: float = 0.0) -> tuple[NDArray[np.float32], NDArray[np.int64],
+                                             NDArray[np.int64]]:
     """Marching tetrahedra over tiles, unstitched (vertices in global voxel-index units).
 
     Parameters
@@ -299,7 +308,8 @@ def contour_tiles(values, boxes, origins, iso=0.0):
     return points, tris, pstart
 
 
-def stitch_tiles(points, tris, starts, boxes, origins, cell_size):
+def stitch_tiles(points: np.ndarray, tris: np.ndarray, starts: np.ndarray, boxes: np.ndarray,
+                 origins: np.ndarray, cell_size: float) -> tuple[NDArray[np.float32], np.ndarray]:
     """Merge the vertices tiles share and scale to metres: one watertight mesh.
 
     Returns
@@ -336,7 +346,7 @@ class TetraPieces:
         self.points, self.tris, self.boxes, self.origins, self.starts = [], [], [], [], [0]
         self.count = 0
 
-    def add(self, values, index_origin, tile: int = 32):
+    def add(self, values: np.ndarray, index_origin: ArrayLike, tile: int = 32) -> None:
         """Contour ``values`` (nz, ny, nx) whose voxel ``[0, 0, 0]`` has global index
         ``index_origin`` (cut into tiles of ``tile`` cells)."""
         boxes = tile_boxes(values.shape, tile)
@@ -345,7 +355,7 @@ class TetraPieces:
                                 boxes.shape[0], axis=0)
             self.add_tiles(values[None], boxes, origins)
 
-    def add_tiles(self, values, boxes, origins):
+    def add_tiles(self, values: np.ndarray, boxes: np.ndarray, origins: np.ndarray) -> None:
         """Contour the tiles ``boxes`` of ``values`` (K, nz, ny, nx) (see
         :func:`filters.surface.tetra.contour_tiles`)."""
         pts, tris, starts = contour_tiles(values, boxes, origins, self.iso)
@@ -358,7 +368,7 @@ class TetraPieces:
         self.starts.append(starts[1:] + self.count)
         self.count += pts.shape[0]
 
-    def mesh(self, cell_size):
+    def mesh(self, cell_size: float) -> tuple[NDArray[np.float32], np.ndarray]:
         """The stitched mesh of every piece added: points (P, 3) float32 (m) and outward
         triangles (T, 3); the pieces are released."""
         if not self.points:
@@ -371,7 +381,8 @@ class TetraPieces:
                             np.concatenate(self.origins), cell_size)
 
 
-def contour_grid(grid, group: int = 4, chunk: int = 64):
+def contour_grid(grid: SparseGrid, group: int = 4,
+                 chunk: int = 64) -> tuple[NDArray[np.float32], np.ndarray]:
     """Marching tetrahedra on a :class:`filters.surface.grid.SparseGrid`, brick by brick.
 
     The grid's bricks of ``group ** 3`` blocks (one voxel of overlap with their neighbours,
@@ -407,7 +418,8 @@ def contour_grid(grid, group: int = 4, chunk: int = 64):
     return pieces.mesh(grid.cell_size)
 
 
-def contour_array(values, index_origin, cell_size, iso=0.0, tile: int = 32):
+def contour_array(values: np.ndarray, index_origin: ArrayLike, cell_size: float, iso: float = 0.0,
+                  tile: int = 32) -> tuple[NDArray[np.float32], np.ndarray]:
     """Marching tetrahedra on one dense array: tiles contoured in parallel, then stitched.
 
     Parameters

@@ -11,6 +11,7 @@ for any number of threads).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -18,6 +19,9 @@ from numba import njit, prange
 from ..binning import cell_window, fitting_cells, sort_into_cells
 from ..kernels import spline_row
 from ..validation import check_points
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = ["anisotropic_volumes", "ellipsoid_volumes", "stretched_gain", "STRETCHED_GAIN",
            "GAIN_EXPONENT"]
@@ -34,7 +38,7 @@ STRETCHED_GAIN = 1.635
 GAIN_EXPONENT = 1.0
 
 
-def stretched_gain(anisotropy):
+def stretched_gain(anisotropy: np.ndarray) -> NDArray[np.float64]:
     """Amplitude factors ``1 + (STRETCHED_GAIN - 1) a^p`` (``p`` = :data:`GAIN_EXPONENT`) of
     ``sph`` kernels of anisotropy ``a`` ((N,) in [0, 1], :func:`filters.surface.anisotropy.
     kernel_matrices`): 1 for a sphere, continuous in ``a``.
@@ -137,7 +141,8 @@ def _volumes_cells(sc, order, start, origin, cell, dims, reach, sg, smd, need, v
             volumes[order[t]] = (math.pi / 8.0) / np.float64(rho)
 
 
-def anisotropic_volumes(centres, G, masses=None, *, only=None):
+def anisotropic_volumes(centres: np.ndarray, G: np.ndarray, masses: np.ndarray | None = None, *,
+                        only: np.ndarray | None = None) -> NDArray[np.float64]:
     """SPH particle volumes under the anisotropic kernels themselves.
 
     ``V_j = m_j / rho_j`` with ``rho_j = sum_k m_k (8 / pi) det(G_k) P(|G_k (c_j - c_k)|)``
@@ -197,7 +202,8 @@ def anisotropic_volumes(centres, G, masses=None, *, only=None):
     return ellipsoid_volumes(centres, G, dets, m, need, reach)
 
 
-def ellipsoid_volumes(centres, G, dets, m, need, reach):
+def ellipsoid_volumes(centres: np.ndarray, G: np.ndarray, dets: np.ndarray, m: np.ndarray,
+                      need: np.ndarray, reach: float) -> NDArray[np.float64]:
     """:func:`anisotropic_volumes` on checked inputs, with ``det(G)`` and a bound ``reach``
     (m) on every kernel's longest semi-axis given.
 

@@ -18,28 +18,34 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..geometry import Box
 from ..validation import check_points, check_range
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike, NDArray
+
 __all__ = ["mirror_ghosts", "check_walls", "mirror_matrices", "grow_walls", "WALL_MARGIN_R"]
 
 #: How far beyond the walls (over the largest particle radius ``r``: one spacing) the field of a
 #: liquid with ghosts is computed: the surface crosses the walls there and is cut exactly at
-#: them afterwards (``pipeline.liquid.ClipBox``), so that neither the marching cubes' sampling of
-#: the edges and corners nor the smoothing of the mesh reach the walls.
+#: them afterwards (``pipeline.surface.liquid.ClipBox``), so that neither the marching cubes'
+#: sampling of the edges and corners nor the smoothing of the mesh reach the walls.
 WALL_MARGIN_R = 2.0
 
 
-def grow_walls(walls, margin: float):
+def grow_walls(walls: tuple[np.ndarray, np.ndarray],
+               margin: float) -> tuple[np.ndarray, np.ndarray]:
     """The box ``walls = (lower, upper)`` grown by ``margin`` (m) on every side."""
     lower, upper = walls
     return lower - margin, upper + margin
 
 
-def check_walls(walls):
+def check_walls(walls: Box | tuple[ArrayLike, ArrayLike] | None
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """``walls`` as ``(lower, upper)`` float64 arrays (m): a :class:`filters.geometry.Box` or a
     pair of corners with ``upper > lower`` on every axis; None stays None."""
     if walls is None:
@@ -57,7 +63,9 @@ def check_walls(walls):
     return lower, upper
 
 
-def mirror_ghosts(positions, lower, upper, reach: float):
+def mirror_ghosts(positions: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                  reach: float) -> tuple[NDArray[np.float64], NDArray[np.int64],
+                                         NDArray[np.float64]]:
     """Images of the particles near the walls of the box ``[lower, upper]`` across those walls.
 
     Parameters
@@ -116,7 +124,7 @@ def mirror_ghosts(positions, lower, upper, reach: float):
             np.concatenate(shifts))
 
 
-def mirror_matrices(G, signs):
+def mirror_matrices(G: np.ndarray, signs: np.ndarray) -> NDArray[np.float64]:
     """Kernel matrices of mirrored ghosts: ``S G S`` with ``S = diag(signs)``.
 
     Parameters

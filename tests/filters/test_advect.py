@@ -99,7 +99,7 @@ def test_emitter_rate_lifetime_ids_and_box():
                          lifetime_jitter=0.0, jitter=1.0)
     sim = NoiseAdvection(Uniform((0.0, 0.0, 0.0)), emitter, integrator="euler")
     dt = 1.0 / 60.0
-    for k in range(15):
+    for _ in range(15):
         sim.step(dt)
     s = sim.state
     assert s.n_points == 150  # 600 /s for 0.25 s, nothing has died yet
@@ -207,7 +207,7 @@ def test_validation():
 
 
 def test_noise_smoke_scene_writes_points_and_surface(tmp_path):
-    from pipeline.series import read_series
+    from pipeline.io.series import read_series
     from scenes.noise_smoke import SCENE
 
     assert all(p.doc for p in SCENE.parameters.values())  # every parameter documented
@@ -231,7 +231,7 @@ def test_noise_smoke_scene_writes_points_and_surface(tmp_path):
 
 
 def test_noise_smoke_resumes_bit_identically_from_disk(tmp_path):
-    from pipeline.series import read_series
+    from pipeline.io.series import read_series
     from scenes.noise_smoke import SCENE
 
     def run(directory, frames, resume=False):

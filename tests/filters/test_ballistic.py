@@ -26,13 +26,15 @@ def test_bounce_time_and_rebound_speed():
     v_hit = g * t_hit
     t = t_hit + 0.1  # 0.1 s after the bounce: z = e v t - g t^2 / 2
     sim.advance_to(t)
-    np.testing.assert_allclose(sim.state.positions[0, 2], e * v_hit * 0.1 - 0.5 * g * 0.01, atol=1e-9)
+    np.testing.assert_allclose(sim.state.positions[0, 2], e * v_hit * 0.1 - 0.5 * g * 0.01,
+                               atol=1e-9)
     np.testing.assert_allclose(sim.state.velocities[0, 2], e * v_hit - g * 0.1, atol=1e-9)
 
 
 def test_comes_to_rest_on_floor_and_never_below():
     sim = BallisticParticles(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.3]]),
-                             np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 2.0]]), floor=0.1, restitution=0.5)
+                             np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 2.0]]), floor=0.1,
+                             restitution=0.5)
     lowest = np.inf
     for t in np.arange(0.05, 6.0, 0.05):
         sim.advance_to(t)

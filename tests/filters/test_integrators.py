@@ -343,7 +343,8 @@ _PENDULUM_CASES = [(1 / 240, "backward_euler", o) for o in (
 
 
 @pytest.mark.parametrize("h, scheme, options", _PENDULUM_CASES,
-                         ids=[f"h={h:.4g}-{'-'.join(f'{k}={v}' for k, v in o.items()) or 'defaults'}"
+                         ids=[f"h={h:.4g}-"
+                              f"{'-'.join(f'{k}={v}' for k, v in o.items()) or 'defaults'}"
                               for h, _, o in _PENDULUM_CASES])
 def test_spring_pendulum_energy_is_exact_backward_euler_s(h, scheme, options):
     # a stiff spring pendulum (k = 1e4 m g / l, l = 1 m, amplitude 0.05 rad) over 10 periods:

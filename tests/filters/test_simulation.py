@@ -31,7 +31,8 @@ def test_frame_times_reject_bad_input(kwargs, match):
 
 def test_state_round_trips_through_arrays_bit_for_bit(rng):
     state = State(rng.random((7, 3)), rng.random((7, 3)), time=0.1 + 0.2, step=3,
-                  extra={"density": rng.random(7), "rng": np.array([1, 2**63 + 5], dtype=np.uint64)})
+                  extra={"density": rng.random(7),
+                         "rng": np.array([1, 2**63 + 5], dtype=np.uint64)})
     back = State.from_arrays(state.to_arrays())
     assert back.time == state.time and back.step == 3
     assert np.array_equal(back.positions, state.positions)

@@ -1,4 +1,4 @@
-"""Appended by the test to the README's pvpython recipe (``exec(open(".../paraview_startup.py")
+"""Appended by the test to the README's pvpython recipe (``exec(open(".../paraview/startup.py")
 .read())``), in a script run by Debian's ``pvpython`` from another folder: use the plugin the
 recipe loaded into this script's namespace.
 

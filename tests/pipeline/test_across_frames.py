@@ -9,8 +9,9 @@ import pyvista as pv
 from filters.surface.temporal import normal_offsets, vertex_normals
 from pipeline import read_series
 from pipeline.cli import main
-from pipeline.frames import FramesError, surface_series
-from pipeline.series import SeriesWriter
+from pipeline.io.series import SeriesWriter
+from pipeline.surface.frames import surface_series
+from pipeline.tasks import FramesError
 
 SPACING = 0.02
 OPTIONS = dict(radius=0.5 * SPACING, smooth_iterations=10, feature_smoothing=10)
@@ -50,7 +51,8 @@ def test_a_static_series_keeps_its_single_frame_surfaces(tmp_path):
     surface_series(particles, tmp_path / "one" / "surface.pvd", progress=False, **OPTIONS)
     surface_series(particles, tmp_path / "five" / "surface.pvd", progress=False,
                    across_frames=2, **OPTIONS)
-    single, across = meshes(tmp_path / "one" / "surface.pvd"), meshes(tmp_path / "five" / "surface.pvd")
+    single = meshes(tmp_path / "one" / "surface.pvd")
+    across = meshes(tmp_path / "five" / "surface.pvd")
     assert len(across) == 5
     for (p, t), (q, u) in zip(single, across):
         np.testing.assert_array_equal(t, u)
@@ -80,7 +82,8 @@ def test_a_moving_drop_jitters_no_more_and_keeps_its_volume(tmp_path):
             out.append(np.sqrt(np.mean(d ** 2)))
         return np.mean(out)
 
-    single, across = meshes(tmp_path / "one" / "surface.pvd"), meshes(tmp_path / "five" / "surface.pvd")
+    single = meshes(tmp_path / "one" / "surface.pvd")
+    across = meshes(tmp_path / "five" / "surface.pvd")
     # measured 0.93x (0.0070 against 0.0075 spacings): the sampling's jitter is a pattern a
     # voxel wide, which the offsets' smoothing over the mesh mostly keeps (the SPH frames'
     # gain is measured in bench_splash.py); what must hold is that it never gets worse

@@ -1,4 +1,4 @@
-"""The ParaView plugin's other end: ``python -m pipeline.bridge`` describes the scenes and
+"""The ParaView plugin's other end: ``python -m pipeline.paraview.bridge`` describes the scenes and
 answers surface requests (one-shot and as a worker) with blobflow's own reconstruction."""
 
 import io
@@ -9,11 +9,11 @@ import sys
 import numpy as np
 import pyvista as pv
 
-from pipeline.bridge import describe, serve
+from pipeline.paraview.bridge import describe, serve
 from pipeline.scene import available_scenes, load_scene
-from pipeline.series import read_frame, write_frame
+from pipeline.io.series import read_frame, write_frame
 from pipeline.surface import reconstruct
-from pipeline.surface_options import SURFACE_DEFAULTS
+from pipeline.surface.options import SURFACE_DEFAULTS
 
 
 def _cloud(tmp_path):
@@ -48,7 +48,7 @@ def test_worker_answers_requests_with_reconstruct(tmp_path):
     lines = "".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in requests)
     out = io.StringIO()
     serve(io.StringIO(lines), out)
-    answers = [json.loads(l) for l in out.getvalue().splitlines()]
+    answers = [json.loads(line) for line in out.getvalue().splitlines()]
     assert answers[0] == {"ok": True}
     assert answers[1]["code"] == 2 and "kernel" in answers[1]["error"]
     assert answers[2]["code"] == 2 and "missing" in answers[2]["error"]
@@ -62,7 +62,7 @@ def test_worker_answers_requests_with_reconstruct(tmp_path):
 
 def test_one_shot_command_and_its_errors(tmp_path):
     source, _ = _cloud(tmp_path)
-    command = [sys.executable, "-m", "pipeline.bridge", "surface", str(source)]
+    command = [sys.executable, "-m", "pipeline.paraview.bridge", "surface", str(source)]
     ok = subprocess.run(command + [str(tmp_path / "s.vtp"), '{"radius": 0.005}'],
                         capture_output=True, text=True, timeout=240)
     assert ok.returncode == 0, ok.stderr

@@ -15,11 +15,11 @@ from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters.simulation import State
 from pipeline import Flow, SimulationSource
-from pipeline.checkpoint import (Checkpoint, CheckpointError, checkpoint_path, file_digest,
+from pipeline.io.checkpoint import (Checkpoint, CheckpointError, checkpoint_path, file_digest,
                                  read_checkpoint, write_checkpoint)
 from pipeline.cli import main
-from pipeline.convert import has_state, state_to_field_data
-from pipeline.series import read_collection, read_frame
+from pipeline.io.convert import has_state, state_to_field_data
+from pipeline.io.series import read_collection, read_frame
 
 import _checkpoint_runs
 from _helpers import ballistic

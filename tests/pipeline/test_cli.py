@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
-from pipeline.series import read_series
+from pipeline.io.series import read_series
 
 
 def _run_cli(capsys, *argv):
@@ -173,13 +173,13 @@ def test_list_verbose_gives_every_description_whole(capsys):
 
     code, out, _ = _run_cli(capsys, "list", "--verbose")
     assert code == 0
-    lines = [l for l in out.splitlines() if l.startswith("    ") and " = " in l]
+    lines = [line for line in out.splitlines() if line.startswith("    ") and " = " in line]
     expected = sum(len(load_scene(n).parameters) for n in available_scenes())
     assert len(lines) == expected
     for line in lines:
         assert line.endswith("."), line
         assert "``" not in line and "  " not in line.split(") ", 1)[1], line
-    assert any("Halving it multiplies the particle count by 8" in l for l in lines)
+    assert any("Halving it multiplies the particle count by 8" in line for line in lines)
 
 
 @pytest.mark.parametrize("command", ["run", "surface", "render", "export", "list", "info",
@@ -218,7 +218,7 @@ def test_one_line_notice_when_numba_compiles(capsys):
     # the notice listens to Numba's compile events, which fire only on a cache miss
     from numba import njit
 
-    from pipeline.cli_tools import announce_compilation
+    from pipeline.cli.tools import announce_compilation
 
     announce_compilation()
 
@@ -238,8 +238,8 @@ def test_one_line_notice_when_numba_compiles(capsys):
 def test_paraview_command_names_the_plugin(capsys):
     code, out, _ = _run_cli(capsys, "paraview")
     plugin = Path(out.split("ParaView plugin: ", 1)[1].split("\n", 1)[0])
-    assert code == 0 and plugin.name == "paraview_plugin.py" and plugin.is_file()
-    assert f"--script={plugin.with_name('paraview_startup.py')}" in out
+    assert code == 0 and plugin.name == "plugin.py" and plugin.parent.name == "paraview" and plugin.is_file()
+    assert f"--script={plugin.with_name('startup.py')}" in out
     code, _, err = _run_cli(capsys, "paraview", "file.pvd")
     assert code == 2 and "need --launch" in err
 

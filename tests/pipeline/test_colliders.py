@@ -8,7 +8,7 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
 from filters.geometry import Box, Plane, Sphere
 from pipeline import Flow, SimulationSource
-from pipeline.colliders import (COLLIDERS_FILE, ROLES, Collider, collider_mesh,
+from pipeline.io.colliders import (COLLIDERS_FILE, ROLES, Collider, collider_mesh,
                                 colliders_dataset, read_colliders, write_colliders)
 from pipeline.scene import available_scenes, load_scene
 

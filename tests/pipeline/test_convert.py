@@ -5,7 +5,7 @@ import pytest
 import pyvista as pv
 
 from filters import Frame, OutputSpec, State
-from pipeline.convert import frame_to_vtk, state_from_dataset, state_to_field_data
+from pipeline.io.convert import frame_to_vtk, state_from_dataset, state_to_field_data
 
 
 def _frame(points, connectivity=None, cell_types=None):
@@ -28,7 +28,8 @@ def test_lines_and_polys_become_polydata_cells():
 def test_volumetric_cells_become_unstructured_grid():
     pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     spec = OutputSpec(topology="cells")
-    grid = pv.wrap(frame_to_vtk(_frame(pts, (np.array([0, 4]), np.arange(4)), np.array([10], np.uint8)), spec))
+    grid = pv.wrap(frame_to_vtk(_frame(pts, (np.array([0, 4]), np.arange(4)),
+                                       np.array([10], np.uint8)), spec))
     assert isinstance(grid, pv.UnstructuredGrid)
     np.testing.assert_allclose(grid.volume, 1 / 6)
     with pytest.raises(ValueError, match="unstructured"):

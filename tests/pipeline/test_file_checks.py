@@ -1,7 +1,7 @@
 """Issue 31, item 4: a crafted VTK XML file never aborts the process.
 
 VTK's readers allocate what a file declares; ``std::bad_alloc`` then aborts the process (exit
-134) where no Python code can catch it. :mod:`pipeline.xmlcheck` checks every declared size in
+134) where no Python code can catch it. :mod:`pipeline.io.xmlcheck` checks every declared size in
 every encoding before VTK reads. Each reader path of the command line gets a crafted file in a
 process of its own (an abort must not take pytest with it) and answers exit 2 with one line;
 a property test feeds the reader seeded mutations of real frames (truncated, a size or header
@@ -23,8 +23,8 @@ import pytest
 import pyvista as pv
 
 from pipeline.cli import main
-from pipeline.series import read_frame, write_frame
-from pipeline.xmlcheck import UnsafeFileError, check_vtk_xml
+from pipeline.io.series import read_frame, write_frame
+from pipeline.io.xmlcheck import UnsafeFileError, check_vtk_xml
 
 from _crafted import (COMPRESSORS, ENCODINGS, huge_block_header, huge_last_offset,
                       huge_points, reencode)
@@ -198,12 +198,12 @@ def test_every_reader_path_answers_a_crafted_frame_with_one_line(run, tmp_path):
     assert not outputs.exists() or not any(outputs.rglob("*.*"))
     # the bridge worker: the one-shot command and the serving loop
     code, lines = _blobflow("surface", bad["inline"], tmp_path / "b.vtp", '{"radius": 0.01}',
-                            module="pipeline.bridge")
+                            module="pipeline.paraview.bridge")
     assert code == 2 and len(lines) == 1 and str(bad["inline"]) in lines[0], lines
     requests = "".join(json.dumps({"command": "surface", "source": str(bad[k]),
                                    "target": str(tmp_path / f"{k}.vtp"),
                                    "options": {"radius": 0.01}}) + "\n" for k in bad)
-    answer = subprocess.run([sys.executable, "-m", "pipeline.bridge", "serve"], input=requests,
+    answer = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"], input=requests,
                             capture_output=True, text=True, timeout=240, env=_env())
     assert answer.returncode == 0, answer.stderr[-2000:]
     replies = [json.loads(line) for line in answer.stdout.splitlines()]

@@ -7,7 +7,8 @@ import pytest
 
 from pipeline import Flow, SimulationSource, read_series
 from pipeline.cli import main
-from pipeline.frames import FramesError, map_frames, surface_series
+from pipeline.surface.frames import surface_series
+from pipeline.tasks import FramesError, map_frames
 
 import _frame_tasks
 from _helpers import ballistic
@@ -18,7 +19,8 @@ distributed = pytest.importorskip("dask.distributed", reason="install blobflow[d
 @pytest.fixture(scope="module")
 def particles(tmp_path_factory):
     out = tmp_path_factory.mktemp("particles")
-    return Flow(SimulationSource(ballistic(n=60), fps=10, duration=0.7)).run(out, progress=False)["particles"]
+    flow = Flow(SimulationSource(ballistic(n=60), fps=10, duration=0.7))
+    return flow.run(out, progress=False)["particles"]
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +55,8 @@ def test_local_cluster_is_byte_identical_to_serial(particles, client, tmp_path):
 def test_surface_series_parallel_matches_serial(particles, client, tmp_path):
     options = dict(radius=0.08, smooth_iterations=5)
     surface_series(particles, tmp_path / "a" / "surface.pvd", progress=False, **options)
-    surface_series(particles, tmp_path / "b" / "surface.pvd", client=client, progress=False, **options)
+    surface_series(particles, tmp_path / "b" / "surface.pvd", client=client, progress=False,
+                   **options)
     assert _files(tmp_path / "a") == _files(tmp_path / "b")
     times, meshes = read_series(tmp_path / "b" / "surface.pvd")
     assert len(times) == 8 and all(m.n_cells > 0 for m in meshes)
@@ -83,7 +86,8 @@ def test_killed_worker_run_still_completes_correctly(particles, client, tmp_path
 @pytest.mark.parametrize("parallel", [False, True])
 def test_frame_failing_twice_is_reported_and_others_kept(particles, client, tmp_path, parallel):
     out = tmp_path / "lift.pvd"
-    with pytest.raises(FramesError, match=r"frame 3 \(t = 0.3 s\): RuntimeError: this frame is cursed") as info:
+    with pytest.raises(FramesError,
+                       match=r"frame 3 \(t = 0.3 s\): RuntimeError: this frame is cursed") as info:
         map_frames(particles, out, _frame_tasks.failing_task, {"bad": 3},
                    client=client if parallel else None, progress=False)
     assert [f.index for f in info.value.failures] == [3]

@@ -1,4 +1,4 @@
-"""The liquid scenes' surface (pipeline.surface_options.liquid_surface_options): drops keep their
+"""The liquid scenes' surface (pipeline.surface.options.liquid_surface_options): drops keep their
 volume, a settled pool keeps its water against the tank's walls, frames do not depend on anything
 but their own particles, and a translated pool gives the translated surface."""
 
@@ -14,10 +14,10 @@ from filters.sph.scenarios import dam_break_liquid
 from filters.surface.mesh import mesh_stats
 from pipeline import Flow, SimulationSource
 from pipeline.algorithm import run_chain
-from pipeline.contour import mesh_to_polydata, polydata_to_mesh
-from pipeline.series import read_series
+from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
+from pipeline.io.series import read_series
 from pipeline.surface import surface_stages
-from pipeline.surface_options import liquid_surface_options
+from pipeline.surface.options import liquid_surface_options
 
 S = 0.02  # particle spacing (m)
 

@@ -21,9 +21,9 @@ from filters.kernels import SPLAT_KERNELS
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
 from pipeline.scene import available_scenes, load_scene
-from pipeline.series import read_frame, read_series
+from pipeline.io.series import read_frame, read_series
 from pipeline.surface import reconstruct
-from pipeline.surface_options import SURFACE_DEFAULTS
+from pipeline.surface.options import SURFACE_DEFAULTS
 
 from _helpers import ballistic
 
@@ -33,9 +33,9 @@ PARAVIEW = shutil.which("paraview")
 XVFB_RUN = shutil.which("xvfb-run")
 HERE = Path(__file__).parent
 ROOT = Path(__file__).resolve().parents[2]
-PLUGIN = ROOT / "pipeline" / "paraview_plugin.py"
-STARTUP = PLUGIN.with_name("paraview_startup.py")
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+PLUGIN = ROOT / "pipeline" / "paraview" / "plugin.py"
+STARTUP = PLUGIN.with_name("startup.py")
+GUIDE = (ROOT / "docs" / "user_guide" / "paraview.rst").read_text(encoding="utf-8")
 SCENE_COUNT = len(list(available_scenes()))
 
 needs_pvpython = pytest.mark.skipif(
@@ -77,21 +77,22 @@ def _pvpython(script, *arguments, tmp_path=None, timeout=240):
     result = subprocess.run([PVPYTHON, str(script), *map(str, arguments)], capture_output=True,
                             text=True, timeout=timeout, env=env)
     assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
-    line = next(l for l in result.stdout.splitlines() if l.startswith("PROBE "))
+    line = next(line for line in result.stdout.splitlines() if line.startswith("PROBE "))
     return json.loads(line[len("PROBE "):]), result.stderr
 
 
 def _readme_recipe(pattern):
-    """The README's ParaView recipe matching ``pattern`` (a regex on the text between
-    backticks), with PATH made this clone's root."""
-    section = README.split("### The ParaView plugin", 1)[1].split("\n## ", 1)[0]
+    """The ParaView guide's recipe matching ``pattern`` (a regex on the text between
+    backticks) in its section *Loading it* (docs/user_guide/paraview.rst; the README links
+    there), with PATH made this clone's root."""
+    section = GUIDE.split("Loading it\n~~~~~~~~~~", 1)[1].split("How it works\n", 1)[0]
     recipes = [r.replace("\n", " ") for r in re.findall(r"`([^`]+)`", section)
                if re.fullmatch(pattern, r.replace("\n", " "))]
-    assert len(recipes) == 1, f"{len(recipes)} recipes like {pattern} in the README's section"
+    assert len(recipes) == 1, f"{len(recipes)} recipes like {pattern} in the guide's section"
     return recipes[0].replace("PATH/", f"{ROOT}/")
 
 
-EXEC_RECIPE = r'exec\(open\("PATH/pipeline/paraview_startup\.py"\)\.read\(\)\)'
+EXEC_RECIPE = r'exec\(open\("PATH/pipeline/paraview/startup\.py"\)\.read\(\)\)'
 LOADED = re.compile(r"blobflow: loaded the ParaView plugin (\S+) \(filter blobflowParticleSurface,"
                     r" (\d+) scene sources\)")
 
@@ -187,8 +188,8 @@ def test_readme_pvpython_recipe_loads_the_plugin_from_another_folder(tmp_path):
     assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
     loaded = LOADED.search(result.stdout)
     assert loaded and Path(loaded.group(1)) == PLUGIN and int(loaded.group(2)) == SCENE_COUNT
-    seen = json.loads(next(l for l in result.stdout.splitlines()
-                           if l.startswith("PROBE "))[len("PROBE "):])
+    seen = json.loads(next(line for line in result.stdout.splitlines()
+                           if line.startswith("PROBE "))[len("PROBE "):])
     scenes = {f"blobflow{name}" for name in ("bouncing", "dam_break", "hair", "cloth_drape")}
     assert {"blobflowParticleSurface"} | scenes <= set(seen["proxies"])
     assert seen["panel"]["Kernel"].strip("'") == "sph"
@@ -270,8 +271,8 @@ def _terminal_output(master, process, done, timeout=240):
 
 
 def _proxies(stdout):
-    return json.loads(next(l for l in stdout.splitlines()
-                           if l.startswith("PROBE "))[len("PROBE "):])
+    return json.loads(next(line for line in stdout.splitlines()
+                           if line.startswith("PROBE "))[len("PROBE "):])
 
 
 @pytest.mark.skipif(PVBATCH is None, reason="pvbatch not found: install Debian's 'paraview'")
@@ -314,7 +315,7 @@ def test_readme_recipe_piped_to_pvpython_asks_blobflows_python(tmp_path):
                             "print(pipeline.__file__)"], capture_output=True, text=True,
                            env=_environment(tmp_path), check=True).stdout.strip()
     loaded = LOADED.search(result.stdout)
-    assert loaded and Path(loaded.group(1)) == Path(where).with_name("paraview_plugin.py")
+    assert loaded and Path(loaded.group(1)) == Path(where).parent / "paraview" / "plugin.py"
     assert len(_proxies(result.stdout)) == 1 + SCENE_COUNT
     # and without any hint: one line saying what to set
     env = _environment(tmp_path)
@@ -326,7 +327,7 @@ def test_readme_recipe_piped_to_pvpython_asks_blobflows_python(tmp_path):
 
 @needs_gui
 def test_readme_paraview_script_recipe_loads_the_plugin_in_the_gui(tmp_path):
-    recipe = shlex.split(_readme_recipe(r"paraview --script=PATH/pipeline/paraview_startup\.py"))
+    recipe = shlex.split(_readme_recipe(r"paraview --script=PATH/pipeline/paraview/startup\.py"))
     # headless: under Xvfb; --exit quits once the script has run
     result = subprocess.run([XVFB_RUN, "-a", *recipe, "--exit"], cwd=tmp_path,
                             capture_output=True, text=True, timeout=300,
@@ -354,7 +355,7 @@ def test_readme_launch_recipe_opens_the_files_after_the_plugin(series, tmp_path)
         process.wait(timeout=60)
     loaded = LOADED.search(text)
     assert loaded and Path(loaded.group(1)) == PLUGIN, text[-2000:]
-    opened = [l.split("blobflow: opened ", 1)[1].strip() for l in text.splitlines()
-              if "blobflow: opened " in l]
+    opened = [line.split("blobflow: opened ", 1)[1].strip() for line in text.splitlines()
+              if "blobflow: opened " in line]
     assert opened == [str(series), str(series.with_name("particles.vtp.series"))], text[-2000:]
     assert text.index("loaded the ParaView plugin") < text.index("blobflow: opened")

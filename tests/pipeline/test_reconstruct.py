@@ -16,7 +16,7 @@ from filters import BallisticParticles
 from pipeline import Flow, SimulationSource, read_series
 from pipeline.feedback import BlobflowWarning, CompileNotice, compile_notice
 from pipeline.surface import reconstruct, surface_stages
-from pipeline.surface_options import OPTION_DEFAULTS, SURFACE_PARAMETERS
+from pipeline.surface.options import OPTION_DEFAULTS, SURFACE_PARAMETERS
 
 RADIUS = 0.005
 OPTIONS = dict(kernel="sph", anisotropic=True, feature_smoothing=5, smooth_iterations=10)
@@ -276,9 +276,9 @@ def test_accessor_on_a_whole_series_as_a_multiblock_and_written(falling, tmp_pat
 
 def test_accessor_on_a_multiblock_after_a_bare_import_pyvista(falling):
     # the pyvista.accessors entry point: no import of blobflow in the user's code
-    code = ("import pyvista as pv; s = pv.read(r'%s').blobflow.surface(0.005, "
+    code = (f"import pyvista as pv; s = pv.read(r'{falling}').blobflow.surface(0.005, "
             "feature_smoothing=0, smooth_iterations=0); print(type(s).__name__, "
-            "s[0].n_open_edges, s[0].n_points > 0)" % falling)
+            "s[0].n_open_edges, s[0].n_points > 0)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=240)
     assert out.returncode == 0, out.stderr[-2000:]

@@ -22,7 +22,7 @@ from filters.memory import MEMORY_ENV, MemoryLimitError, check_memory, format_by
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
 from pipeline.scene import Scene, available_scenes, load_scene
-from pipeline.series import SeriesError, SeriesWriter, read_frame, read_series, write_frame
+from pipeline.io.series import SeriesError, SeriesWriter, read_frame, read_series, write_frame
 
 from _helpers import ballistic, failing_ballistic
 
@@ -401,7 +401,7 @@ def test_10_folder_of_another_scene_is_refused_and_reruns_leave_nothing_stale(tm
     left = sorted(p.name for p in out.iterdir())
     assert left == ["colliders.vtp", "my_notes.txt", "particles", "particles.checkpoint.npz",
                     "particles.pvd", "particles.vtp.series", "scene.json"]  # colliders.vtp: the
-    # new run's floor; the checkpoint: the new run's (pipeline.checkpoint)
+    # new run's floor; the checkpoint: the new run's (pipeline.io.checkpoint)
 
 
 # -- property test: bad --set values for every parameter of every scene ----------------------------
@@ -415,7 +415,8 @@ def _bad_values(parameter) -> list[str]:
     if kind in ("int", "float"):
         if re.search(r"(^|[^<])>=? ?0\b|\(0, |\[0, |positive", doc):
             values.append("-1")
-        match = re.search(r"(?:in|from) [\[(]\s*(-?[\d.e+-]+)\s*(?:,| to)\s*(-?[\d.e+-]+)\s*[\])]", doc)
+        match = re.search(r"(?:in|from) [\[(]\s*(-?[\d.e+-]+)\s*(?:,| to)"
+                          r"\s*(-?[\d.e+-]+)\s*[\])]", doc)
         if match:
             values.append(repr(float(match.group(2)) * 10 + 10))
     if parameter.name == "mesh":

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
-from pipeline.folderlock import LOCK_NAME, lock_owner
-from pipeline.outfiles import is_temporary_name, sweep_temporaries, temporary_path
-from pipeline.series import read_series, validate_series
+from pipeline.io.folderlock import LOCK_NAME, lock_owner
+from pipeline.io.outfiles import is_temporary_name, sweep_temporaries, temporary_path
+from pipeline.io.series import read_series, validate_series
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).parent
@@ -83,7 +83,7 @@ def test_1_surface_and_run_keep_the_users_files_beside_their_frames(tmp_path, ca
 # -- 2. one writer per output folder -------------------------------------------------------------
 def _holder(folder: Path) -> subprocess.Popen:
     """A process holding the lock of ``folder`` until killed."""
-    code = ("import sys, time\nfrom pipeline.folderlock import lock_folder\n"
+    code = ("import sys, time\nfrom pipeline.io.folderlock import lock_folder\n"
             "with lock_folder(sys.argv[1]):\n    print('held', flush=True)\n    time.sleep(120)\n")
     process = subprocess.Popen([sys.executable, "-c", code, str(folder)], stdout=subprocess.PIPE,
                                text=True, env=_env())
@@ -145,7 +145,7 @@ def test_2_temporary_names_are_unique_per_process_and_swept_after_a_crash(tmp_pa
     here = {temporary_path(target).name for _ in range(50)}
     assert len(here) == 50 and all(is_temporary_name(n) for n in here)
     assert all(f"-{os.getpid()}-" in n and n.endswith(".tmp.pvd") for n in here)
-    code = ("import sys\nfrom pathlib import Path\nfrom pipeline.outfiles import temporary_path\n"
+    code = ("import sys\nfrom pathlib import Path\nfrom pipeline.io.outfiles import temporary_path\n"
             "p = temporary_path(Path(sys.argv[1]))\np.write_text('half')\nprint(p.name)\n")
     other = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True,
                            text=True, env=_env(), check=True).stdout.strip()
@@ -185,7 +185,7 @@ def test_2_paraview_sources_sharing_a_cache_folder_wait_for_each_other(tmp_path)
         if name in os.environ:
             env[name] = os.environ[name]
     probe = subprocess.Popen([PVPYTHON, str(HERE / "paraview_shared_probe.py"),
-                              str(ROOT / "pipeline" / "paraview_startup.py"), str(folder)],
+                              str(ROOT / "pipeline" / "paraview" / "startup.py"), str(folder)],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         # the source's own run is refused (its log says by whom) and the source waits ...
@@ -202,8 +202,8 @@ def test_2_paraview_sources_sharing_a_cache_folder_wait_for_each_other(tmp_path)
     assert probe.returncode == 0, (out + err)[-3000:]
     writer.wait(timeout=120)
     assert writer.returncode == 0
-    seen = json.loads(next(l for l in out.splitlines()
-                           if l.startswith("PROBE "))[len("PROBE "):])
+    seen = json.loads(next(line for line in out.splitlines()
+                           if line.startswith("PROBE "))[len("PROBE "):])
     times, frames = read_series(folder / "particles.pvd")
     assert list(times) == [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
     for source in ("first", "second"):
@@ -305,12 +305,12 @@ def test_11_a_checkpoint_that_does_not_fit_is_refused_and_the_right_resume_still
 def test_14_a_failed_export_or_movie_leaves_no_temporary_file(tmp_path, capsys, monkeypatch):
     out = _bouncing(tmp_path, capsys)
     pytest.importorskip("pxr")
-    import pipeline.usd
+    import pipeline.io.usd
 
     def broken(*args, **kwargs):
         raise RuntimeError("the disk is full")
 
-    monkeypatch.setattr(pipeline.usd, "_write_series", broken)
+    monkeypatch.setattr(pipeline.io.usd, "_write_series", broken)
     code, _, err = _cli(capsys, "export", out / "particles.pvd", "--usd", tmp_path / "x.usdc")
     assert code == 1 and "the disk is full" in err
     from pipeline.render import write_movie

@@ -20,12 +20,12 @@ import pyvista as pv
 from filters.memory import MEMORY_ENV
 from filters.surface import crowding
 from filters.surface.crowding import CrowdingError, check_crowding, pair_work_limit
-from pipeline import bridge
+from pipeline.paraview import bridge
 from pipeline.cli import main
-from pipeline.cli_common import max_workers
-from pipeline.contour import brick_chunk
+from pipeline.cli.common import max_workers
+from pipeline.surface.contour import brick_chunk
 from pipeline.render import max_views
-from pipeline.series import SeriesWriter
+from pipeline.io.series import SeriesWriter
 from pipeline.surface import reconstruct
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -139,14 +139,14 @@ def test_7_the_bridge_answers_bad_lines_and_failures_and_carries_on(tmp_path, mo
     assert (tmp_path / "o.vtp").is_file()
     # the same in the worker process the plugin keeps
     stdin = lines[0] + "\n" + json.dumps({**request, "target": str(tmp_path / "p.vtp")}) + "\n"
-    result = subprocess.run([sys.executable, "-m", "pipeline.bridge", "serve"], input=stdin,
+    result = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"], input=stdin,
                             capture_output=True, text=True, timeout=240, env=_env())
     assert result.returncode == 0 and "Traceback" not in result.stderr
     assert [json.loads(line)["ok"] for line in result.stdout.splitlines()] == [False, True]
 
 
 def write_good_particles(folder: Path) -> Path:
-    from pipeline.series import write_frame
+    from pipeline.io.series import write_frame
 
     x = (np.indices((5, 5, 5)).reshape(3, -1).T + 0.5) * 0.02
     return write_frame(pv.PolyData(x), folder / "good.vtp")
@@ -182,9 +182,9 @@ def _server(reply: bytes, trickle: float = 0.0):
 def test_8_a_scheduler_that_stalls_mid_handshake_is_refused_within_the_promise(tmp_path, capsys,
                                                                              monkeypatch):
     pytest.importorskip("dask.distributed")
-    import pipeline.frames
+    import pipeline.tasks
 
-    monkeypatch.setattr(pipeline.frames, "PROBE_TIMEOUT", 1.5)  # 5 s by default: a fast test
+    monkeypatch.setattr(pipeline.tasks, "PROBE_TIMEOUT", 1.5)  # 5 s by default: a fast test
     series = _cloud_series(tmp_path, [np.random.default_rng(1).uniform(0, 0.1, (30, 3))])
     frames = struct.pack("<QQQ", 2, 40, 40)  # two frames of 40 bytes announced, none sent
     replies = [struct.pack("<Q", 100) + b"\x01\x02",  # a part of the first block
@@ -242,7 +242,7 @@ def test_9_a_stray_particle_or_a_nan_leaves_the_picture_as_it_was(tmp_path, caps
     assert code == 0, err
 
 
-# -- 12. USD: no NaN, no infinity, distinct time codes ----------------------------------------------
+# -- 12. USD: no NaN, no infinity, distinct time codes ---------------------------------------------
 def test_12_export_refuses_nan_inf_and_times_that_collapse(tmp_path, capsys):
     pytest.importorskip("pxr")
     good = _cloud_series(tmp_path / "good", [np.zeros((3, 3)), np.ones((3, 3))])
@@ -268,7 +268,7 @@ def test_12_export_refuses_nan_inf_and_times_that_collapse(tmp_path, capsys):
     assert not [p for p in tmp_path.iterdir() if p.is_file()]  # no stage, no temporary
 
 
-# -- 13. unbounded resources: limits from the machine, stated ---------------------------------------
+# -- 13. unbounded resources: limits from the machine, stated --------------------------------------
 @pytest.mark.timeout(120)
 def test_13_limits_are_computed_from_the_machine_and_stated(tmp_path, capsys, monkeypatch, rng):
     before = _grown_rss()
@@ -307,13 +307,14 @@ def test_13_info_holds_one_frame_at_a_time(tmp_path):
     result = subprocess.run([sys.executable, "-c", code, str(series)], capture_output=True,
                             text=True, timeout=240, env=_env())
     assert result.returncode == 0, result.stderr
-    grown = int(next(l for l in result.stdout.splitlines() if l.startswith("GROWN")).split()[1])
+    grown = int(next(line for line in result.stdout.splitlines()
+                     if line.startswith("GROWN")).split()[1])
     frame = 250_000 * (24 + 8)  # points and ids of one frame
     assert grown < 6 * frame  # all 12 frames at once: 18 (measured 144 MiB before, 39 after)
     assert "12 frames" in result.stdout
 
 
-# -- 14. overflows, names too long, encoders: one line ----------------------------------------------
+# -- 14. overflows, names too long, encoders: one line ---------------------------------------------
 def test_14_overflows_long_names_and_encoder_limits_are_one_line(tmp_path, capsys, rng):
     series = _cloud_series(tmp_path / "a", [rng.uniform(0, 0.1, (30, 3))] * 3)
     long = "n" * 300
@@ -345,7 +346,7 @@ def test_14_overflows_long_names_and_encoder_limits_are_one_line(tmp_path, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]
 
 
-# -- 15. input mistakes are refused before the first frame -------------------------------------------
+# -- 15. input mistakes are refused before the first frame -----------------------------------------
 @pytest.mark.timeout(120)
 def test_15_input_mistakes_are_refused_before_the_first_frame(tmp_path, capsys, rng):
     points = [rng.uniform(0, 0.1, (40, 3)) for _ in range(3)]

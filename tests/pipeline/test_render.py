@@ -12,7 +12,7 @@ from pipeline import Flow, SimulationSource
 from pipeline.cli import main
 from pipeline.render import Renderer, parse_size, timelapse, turntable
 from pipeline.scene import available_scenes, load_scene
-from pipeline.series import SeriesWriter, read_series
+from pipeline.io.series import SeriesWriter, read_series
 
 from _helpers import ballistic
 
@@ -155,7 +155,8 @@ def test_cli_render_writes_gif_with_requested_frames(series, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("content", [None, "garbage", "<VTKFile type='Collection'><Collection>"
-                                     "<DataSet timestep='0' file='p/gone.vtp'/></Collection></VTKFile>"])
+                                     "<DataSet timestep='0' file='p/gone.vtp'/>"
+                                     "</Collection></VTKFile>"])
 def test_cli_render_missing_or_malformed_series(tmp_path, capsys, content):
     path = tmp_path / "s.pvd"
     if content is not None:
@@ -170,7 +171,7 @@ def test_without_offscreen_opengl_run_keeps_its_series_and_render_says_why(tmp_p
                                                                              monkeypatch):
     # where neither EGL nor OSMesa is installed VTK crashes creating a window: measured, a
     # segmentation fault; blobflow must stop before that and say which packages are missing
-    import pipeline.offscreen as offscreen
+    import pipeline.render.offscreen as offscreen
 
     monkeypatch.setattr(offscreen, "_CAN_RENDER", False)
     out = tmp_path / "run"

@@ -13,12 +13,12 @@ import pyvista as pv
 
 from filters.geometry import Box, Plane
 from pipeline.cli import main
-from pipeline.colliders import COLLIDERS_FILE, Collider, write_colliders
-from pipeline.gallery import GALLERY_SIZE, code_mtime, gallery_still, run_is_current, run_series
+from pipeline.io.colliders import COLLIDERS_FILE, Collider, write_colliders
+from pipeline.render.gallery import GALLERY_SIZE, code_mtime, gallery_still, run_is_current, run_series
 from pipeline.render import frame_at_time, interesting_frame, turntable
-from pipeline.renderer import Renderer
+from pipeline.render.renderer import Renderer
 from pipeline.scene import Scene, available_scenes, load_scene
-from pipeline.series import SeriesWriter
+from pipeline.io.series import SeriesWriter
 
 pytestmark = pytest.mark.render
 
@@ -106,8 +106,11 @@ def empty_tank(tmp_path_factory):
 def test_tank_edges_are_drawn_along_their_projection(empty_tank):
     path, lo, hi = empty_tank
     # the four top edges and the four vertical ones: 8 of the 12, none hidden by the bottom
-    corners = lambda z: [np.array([x, y, z]) for x, y in ((lo[0], lo[1]), (hi[0], lo[1]),
-                                                          (hi[0], hi[1]), (lo[0], hi[1]))]
+
+    def corners(z):
+        return [np.array([x, y, z]) for x, y in ((lo[0], lo[1]), (hi[0], lo[1]),
+                                                 (hi[0], hi[1]), (lo[0], hi[1]))]
+
     top = corners(hi[2])
     edges = [(top[k], top[(k + 1) % 4]) for k in range(4)]
     edges += [(a, b) for a, b in zip(corners(lo[2]), top)]
@@ -264,12 +267,14 @@ def test_scene_still_time_must_lie_within_its_duration():
         Scene("b", build, "d", duration=2.0, still=2.5)
 
 
-def test_readme_shows_the_gallery_image_of_every_scene():
+def test_docs_show_the_gallery_image_of_every_scene():
+    # the scenes' page of the user guide (the README shows one picture and links there)
+    page = (ROOT / "docs" / "user_guide" / "scenes.rst").read_text(encoding="utf-8")
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    table = readme.split("## Scenes", 1)[1].split("\n## ", 1)[0]
+    assert "docs/user_guide/scenes.rst" in readme
     for name in available_scenes():
         assert (ROOT / "docs" / f"{name}.png").is_file(), f"run `blobflow gallery {name}`"
-        assert f"docs/{name}.png" in table, f"show docs/{name}.png in the README's scene table"
+        assert f".. image:: /{name}.png" in page, f"show docs/{name}.png in the scenes' page"
 
 
 def test_gallery_draws_only_the_outputs_the_scene_draws(tmp_path):
@@ -313,7 +318,7 @@ def test_flat_faces_of_a_liquid_surface_are_shaded_flat(tmp_path):
 
 
 def test_a_liquid_surface_is_drawn_as_water_whatever_its_series_is_called(tmp_path):
-    from pipeline import looks
+    from pipeline.render import looks
     from pipeline.surface import reconstruct
 
     x = (np.mgrid[0:8, 0:8, 0:8].reshape(3, -1).T + 0.5) * 0.02
@@ -352,4 +357,4 @@ def test_smoke_hides_any_surface_contoured_around_its_particles(tmp_path):
     particles = _write(tmp_path / "particles.pvd", [smoke, smoke])
     contoured = _write(tmp_path / "smooth.pvd", [surface, surface])
     with Renderer([particles, contoured], size=SIZE, frames=[0], colliders=None) as renderer:
-        assert [(l.name, l.kind) for l in renderer.layers] == [("particles", "smoke")]
+        assert [(layer.name, layer.kind) for layer in renderer.layers] == [("particles", "smoke")]

@@ -11,7 +11,7 @@ from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters import SimulationError
 from pipeline import Flow, SimulationSource, export_xdmf, read_series
-from pipeline.series import SeriesError, SeriesWriter, read_collection
+from pipeline.io.series import SeriesError, SeriesWriter, read_collection
 
 from _helpers import ballistic, failing_ballistic
 
@@ -195,8 +195,8 @@ def test_read_series_errors(tmp_path):
     bad.write_text("<VTKFile type='Collection'><Collection><DataSet file='x/none.vtp'/>")
     with pytest.raises(SeriesError, match="not a valid series"):
         read_series(bad)
-    bad.write_text("<VTKFile type='Collection'><Collection><DataSet timestep='0' file='x/none.vtp'/>"
-                   "</Collection></VTKFile>")
+    bad.write_text("<VTKFile type='Collection'><Collection>"
+                   "<DataSet timestep='0' file='x/none.vtp'/></Collection></VTKFile>")
     with pytest.raises(SeriesError, match="missing"):
         read_series(bad)
 

@@ -8,7 +8,7 @@ from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters import BallisticParticles, frame_times
 from pipeline import SimulationSource
-from pipeline.convert import dataset_time, has_state
+from pipeline.io.convert import dataset_time, has_state
 
 
 def _sim():

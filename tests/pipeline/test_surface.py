@@ -16,7 +16,7 @@ from filters.surface.splat import splat_dense, splat_sparse
 from filters.surface.mesh import mesh_stats
 from pipeline import SimulationSource
 from pipeline.algorithm import Algorithm, connect_chain, run_chain, update
-from pipeline.contour import contour_dense, contour_sparse, polydata_to_mesh
+from pipeline.surface.contour import contour_dense, contour_sparse, polydata_to_mesh
 from pipeline.surface import (
     FeatureSmoothing,
     InterpolateAttributes,

@@ -7,13 +7,13 @@ import pyvista as pv
 from filters import BallisticParticles
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
-from pipeline.series import SeriesWriter, read_series
+from pipeline.io.series import SeriesWriter, read_series
 from pipeline.surface import surface_stages
 
 pxr = pytest.importorskip("pxr", reason="usd-core is not installed (pip install -e \".[usd]\")")
 from pxr import Usd, UsdGeom  # noqa: E402
 
-from pipeline.usd import export_usd, time_codes  # noqa: E402
+from pipeline.io.usd import export_usd, time_codes  # noqa: E402
 
 FPS = 10
 
@@ -136,3 +136,57 @@ def test_cli_export(series, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("blobflow: error: ") and err.count("\n") == 1
     assert "must end in .usd" in err and not (tmp_path / "x.obj").exists()
+
+
+def _strands(cells, order):
+    """3 strands of 4 segments (5 points each) as line cells, the points stored in ``order``
+    (a permutation: frames are sorted by id, not by strand)."""
+    strands = [np.c_[np.full(5, 0.1 * s), np.zeros(5), 1.0 - 0.05 * np.arange(5)]
+               for s in range(3)]
+    natural = np.concatenate(strands)  # point 5 s + j: strand s, vertex j
+    stored = np.empty_like(natural)
+    stored[order] = natural  # natural point p is stored at row order[p]
+    rows = order.reshape(3, 5)
+    if cells == "segments":
+        lines = np.concatenate([[2, r[j], r[j + 1]] for r in rows for j in range(4)])
+    else:
+        lines = np.concatenate([[5, *r] for r in rows])
+    mesh = pv.PolyData(stored, lines=lines)
+    mesh.point_data["velocity"] = stored * 2.0
+    return mesh, natural.reshape(3, 5, 3)
+
+
+@pytest.mark.parametrize("cells", ["segments", "polylines"])
+def test_hair_round_trip_one_curve_per_strand(tmp_path, cells):
+    # BasisCurves hold one vertex count per curve and the curves' vertices in order: a strand
+    # written as 2-point segments is one curve of 5 vertices, not 4 curves of 2
+    order = np.random.default_rng(3).permutation(15)
+    writer = SeriesWriter(tmp_path / "hair.pvd")
+    for k in range(2):
+        mesh, strands = _strands(cells, order)
+        writer.write(mesh.translate((0, 0, -0.1 * k)), k / FPS)
+    stage = Usd.Stage.Open(str(export_usd(writer.path, tmp_path / "hair.usda", fps=FPS)))
+    curves = UsdGeom.BasisCurves(stage.GetPrimAtPath("/blobflow/hair"))
+    assert curves.GetTypeAttr().Get() == UsdGeom.Tokens.linear
+    counts = list(curves.GetCurveVertexCountsAttr().Get())
+    assert counts == [5, 5, 5]
+    for k in range(2):
+        points = np.asarray(curves.GetPointsAttr().Get(k))
+        assert len(points) == sum(counts)  # what a USD reader checks
+        expected = (strands + [0, 0, -0.1 * k]).reshape(-1, 3).astype(np.float32)
+        np.testing.assert_allclose(points, expected, atol=1e-6)  # strand after strand, in order
+        np.testing.assert_allclose(np.asarray(curves.GetVelocitiesAttr().Get(k)),
+                                   2.0 * strands.reshape(-1, 3),  # velocity: not moved
+                                   rtol=1e-6, atol=1e-6)
+        assert len(curves.GetWidthsAttr().Get(k)) == sum(counts)
+
+
+def test_curves_of_lines_joins_only_cells_that_continue_one_another():
+    from pipeline.io.usd import curves_of_lines
+
+    # segments 0-1, 1-2 (one curve), then 5-6 (a new one), then a polyline 6-7-8 starting
+    # where the last ended (joined), and an empty input
+    counts, order = curves_of_lines([2, 2, 2, 3], [0, 1, 1, 2, 5, 6, 6, 7, 8])
+    assert counts.tolist() == [3, 4] and order.tolist() == [0, 1, 2, 5, 6, 7, 8]
+    counts, order = curves_of_lines([], [])
+    assert counts.size == 0 and order.size == 0

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from filters.simulation import SimulationUnstableError
-from pipeline import warmup
+from pipeline.cli import warmup
 from pipeline.algorithm import run_chain
-from pipeline.convert import frame_to_vtk
+from pipeline.io.convert import frame_to_vtk
 from pipeline.scene import load_scene
 from pipeline.surface import surface_stages
-from pipeline.surface_options import surface_options_from_record
+from pipeline.surface.options import surface_options_from_record
 
 
 class _Worker:

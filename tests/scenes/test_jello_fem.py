@@ -7,7 +7,7 @@ from filters.elastic.tetmesh import tet_volumes
 from filters.elastic.topology import mesh_volume
 from pipeline.cli import main
 from pipeline.scene import load_scene
-from pipeline.series import read_series
+from pipeline.io.series import read_series
 
 SMALL = {"spacing": 0.06, "radius": 0.12, "height": 0.1}
 
@@ -143,7 +143,7 @@ def test_a_gmsh_tetrahedral_mesh_is_simulated_as_given(tmp_path):
     from filters.elastic.contact import Colliders
     from filters.elastic.fem_simulation import FEMSimulation
     from filters.geometry import Plane
-    from pipeline.volume_mesh import read_volume_mesh
+    from pipeline.io.volume_mesh import read_volume_mesh
 
     x, tets = _column_tets()
     path = _write(tmp_path / "column.msh", x, [("tetra", tets), ("triangle", tets[:5, :3])])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
-from pipeline.series import read_series
+from pipeline.io.series import read_series
 
 G = 9.81
 

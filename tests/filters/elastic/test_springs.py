@@ -38,11 +38,15 @@ def test_jacobians_match_central_differences(mode):
     jx, jv = spring_jacobians(x, PAIRS, rest, k, v, c, mode)
     assert np.any(np.linalg.norm(x[PAIRS[:, 0]] - x[PAIRS[:, 1]], axis=1) < rest)  # compressed
     for s, (a, b) in enumerate(PAIRS):
-        fx = lambda xx: spring_forces(xx, PAIRS, rest, k, v, c, mode)[s]  # noqa: E731
-        fv = lambda vv: spring_forces(x, PAIRS, rest, k, vv, c, mode)[s]  # noqa: E731
+        def fx(xx, s=s):
+            return spring_forces(xx, PAIRS, rest, k, v, c, mode)[s][None]
+
+        def fv(vv, s=s):
+            return spring_forces(x, PAIRS, rest, k, vv, c, mode)[s][None]
+
         for end, sign in ((a, 1.0), (b, -1.0)):
-            num_x = _fd(lambda xx: fx(xx)[None], x, end)[0]
-            num_v = _fd(lambda vv: fv(vv)[None], v, end)[0]
+            num_x = _fd(fx, x, end)[0]
+            num_v = _fd(fv, v, end)[0]
             scale = np.abs(jx[s]).max()
             assert np.abs(num_x - sign * jx[s]).max() / scale < 1e-6
             assert np.abs(num_v - sign * jv[s]).max() / np.abs(jv[s]).max() < 1e-6

@@ -60,8 +60,8 @@ def test_a_restored_state_continues_bit_for_bit():
 
 def test_a_checkpoint_written_to_disk_resumes_the_run_bit_for_bit(tmp_path):
     from pipeline import SimulationSource
-    from pipeline.checkpoint import Checkpoint, read_checkpoint, write_checkpoint
-    from pipeline.series import read_frame, write_frame
+    from pipeline.io.checkpoint import Checkpoint, read_checkpoint, write_checkpoint
+    from pipeline.io.series import read_frame, write_frame
 
     source = SimulationSource(_scene(), fps=30, duration=0.5)
     source.UpdateTimeStep(0.3)

@@ -58,7 +58,6 @@ def test_momentum_conserved_without_gravity_and_walls():
     v = rng.normal(0, 0.5, x.shape)
     sim = SPHLiquid(x, v, spacing=s, gravity=(0, 0, 0), viscosity=0.3, xsph=0.2,
                     surface_tension=1.0, speed_of_sound=10.0, density_error_limit=1.0)
-    ids = sim.state.extra["id"]
     p0 = v.sum(axis=0)
     for _ in range(60):
         sim.step(sim.max_step())
@@ -131,7 +130,10 @@ def test_external_field_and_surface_tension_drop():
     x = lattice((-0.04, -0.015, -0.015), (0.04, 0.015, 0.015), s)
     start = _aspect(x)
     assert start > 2.5
-    push = lambda pos, vel, t: np.tile([1.0, 0.0, 0.0], (pos.shape[0], 1))
+
+    def push(pos, vel, t):
+        return np.tile([1.0, 0.0, 0.0], (pos.shape[0], 1))
+
     aspect = {}
     for tension in (0.0, 0.5):
         sim = SPHLiquid(x, spacing=s, gravity=(0, 0, 0), external=push, surface_tension=tension)

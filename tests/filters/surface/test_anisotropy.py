@@ -1,4 +1,5 @@
-"""Anisotropic kernels (Yu & Turk 2013): filters.surface.anisotropy and filters.surface.ellipsoids."""
+"""Anisotropic kernels (Yu & Turk 2013): filters.surface.anisotropy and
+filters.surface.ellipsoids."""
 
 import math
 
@@ -15,7 +16,7 @@ from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_s
                                    splat_sparse_anisotropic)
 from filters.surface.volumes import anisotropic_volumes
 from filters.surface.mesh import mesh_stats
-from pipeline.contour import contour_dense, contour_sparse
+from pipeline.surface.contour import contour_dense, contour_sparse
 
 S = 0.02  # lattice spacing (m)
 R = 0.01  # particle radius (m)
@@ -302,7 +303,7 @@ def test_metaball_splat_stage_exposes_anisotropic_kernels():
     """The VTK stage splats ellipsoids when asked and refuses kernels without an ellipsoid form."""
     import pyvista as pv
 
-    from pipeline.contour import polydata_to_mesh
+    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import MarchingCubes, MetaballSplat
 
     rng = np.random.default_rng(3)

@@ -11,7 +11,7 @@ from filters.surface.csg import combine_sparse
 from filters.surface.mesh import mesh_stats
 from filters.surface.splat import splat_sparse, splat_sparse_anisotropic
 from filters.surface.walls import check_walls, mirror_ghosts, mirror_matrices
-from pipeline.contour import contour_sparse
+from pipeline.surface.contour import contour_sparse
 
 S = 0.02
 R = 0.01
@@ -242,8 +242,8 @@ def test_a_cut_through_a_point_where_two_pieces_touch_is_closed():
     touch a tank wall at one point): the cut's boundary passes that vertex twice, two loops
     share it; both are capped and the result is closed with the exact half volumes."""
     from pipeline.algorithm import run_chain
-    from pipeline.contour import mesh_to_polydata
-    from pipeline.liquid import ClipBox
+    from pipeline.surface.contour import mesh_to_polydata
+    from pipeline.surface.liquid import ClipBox
     from vtkmodules.util import numpy_support
 
     pa, ta = _octahedron((0.0, -1.0, 0.0))

@@ -11,7 +11,7 @@ from filters.surface.smoothing import (
 )
 from filters.surface.splat import splat_sparse
 from filters.surface.mesh import mesh_stats
-from pipeline.contour import contour_sparse
+from pipeline.surface.contour import contour_sparse
 
 S = 0.02  # lattice spacing (m)
 R = 0.01  # particle radius (m)

@@ -15,7 +15,8 @@ def grid_plane(z, n=12, size=1.0, jitter=0.0, seed=0):
     if jitter:
         v[:, :2] += np.random.default_rng(seed).uniform(-jitter, jitter, (v.shape[0], 2))
     idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    a, b, c, d = (idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(),
+                  idx[:-1, 1:].ravel())
     return v, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
 
 
