@@ -390,7 +390,8 @@ class SPHLiquid(Simulation):
         b = self.boundary_set
         return BoundaryParticles(b.points, b.volumes, b.normals, b.velocities, b.friction)
 
-    def move_boundary(self, points=None, velocities=None, *, volumes=None, indices=None) -> None:
+    def move_boundary(self, points=None, velocities=None, *, volumes=None, indices=None,
+                      normals=None) -> None:
         """Move (some of) the boundary particles before the next step (DFSPH).
 
         A rigid body or a deforming surface simulated elsewhere hands over its particles' new
@@ -409,6 +410,8 @@ class SPHLiquid(Simulation):
             :func:`filters.sph.boundary.boundary_volumes`).
         indices : (K,) array_like of int, optional
             Which boundary particles, in the order the liquid was built with.
+        normals : (K, 3) array_like, optional
+            Their unit normals, e.g. those of a body that has turned.
 
         Raises
         ------
@@ -418,7 +421,7 @@ class SPHLiquid(Simulation):
         """
         if self.model.solver != "dfsph":
             raise ValueError("move_boundary needs solver='dfsph' (WCSPH's boundary is static)")
-        self.boundary_set.move(points, velocities, volumes, indices)
+        self.boundary_set.move(points, velocities, volumes, indices, normals)
 
     def boundary_forces(self, indices=None) -> np.ndarray:
         """Force (N) the fluid exerted on boundary particles during the last step (DFSPH).
