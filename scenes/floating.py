@@ -26,14 +26,15 @@ SCENE_FPS = 30.0
 SCENE_DURATION = 2.5  # s: the drop, the splash, the bobbing, at rest
 
 
-def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float = 0.15,
-          tank_height: float = 0.25, water_depth: float = 0.12, box_size: float = 0.06,
+def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float = 0.2,
+          tank_height: float = 0.25, water_depth: float = 0.12, box_size: float = 0.1,
+          box_height: float = 0.05,
           densities: tuple = (500.0, 900.0, 1500.0), drop_height: float = 0.02,
           kinematic_viscosity: float = 1e-4, cfl: float = 0.4, max_dt: float = 0.005,
           surface: bool = True, smooth_iterations: int = 30, feature_smoothing: int = 25,
           anisotropic: bool = True) -> Flow:
-    """Drop boxes of the given densities side by side into a pool (8,100 water particles with
-    the defaults).
+    """Drop boxes of the given densities side by side into a pool (10,800 water particles
+    with the defaults).
 
     Parameters
     ----------
@@ -44,7 +45,12 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float
     water_depth : float
         Depth of the pool (m), at least two spacings, at most ``tank_height``.
     box_size : float
-        Edge of the cubes (m), at least two spacings; best a whole number of spacings.
+        Length and width of the boxes (m), at least two spacings; best a whole number of
+        spacings.
+    box_height : float
+        Height of the boxes (m), at least two spacings.  Flat boxes float upright: a cube of
+        half the water's density would tip over (its metacentre lies below its centre of
+        mass), a box twice as wide as high does not (``b^2 / (12 d) > (H - d) / 2``).
     densities : sequence of float
         One box per density (kg/m^3), each in [100, 10000], spread evenly along x.
     drop_height : float
@@ -65,6 +71,7 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float
     tank = (tank_length, tank_width, tank_height)
     spacing = check_pool(tank, water_depth, spacing)
     size = check_range("box_size", box_size, 2 * spacing, min(tank_length, tank_width))
+    height = check_range("box_height", box_height, 2 * spacing, tank_height)
     drop = check_range("drop_height", drop_height, 0.0, tank_height)
     dens = np.atleast_1d(np.asarray(densities, dtype=np.float64))
     if dens.ndim != 1 or not 1 <= dens.size <= 8 or not np.all((dens >= 100) & (dens <= 1e4)):
@@ -73,7 +80,7 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float
     if dens.size * size > tank_length:
         raise ValueError(f"{dens.size} boxes of {size:g} m do not fit along tank_length "
                          f"{tank_length:g} m")
-    if water_depth + drop + size > tank_height:
+    if water_depth + drop + height >= tank_height - spacing:
         raise ValueError("the boxes do not fit under the lid: lower drop_height or box_size")
     check_range("kinematic_viscosity", kinematic_viscosity, 0.0, 1.0, low_inclusive=False)
     check_bool("surface", surface)
@@ -84,7 +91,8 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float
         x0 = round((pitch * (k + 0.5) - 0.5 * size) / spacing) * spacing
         y0 = round((0.5 * tank_width - 0.5 * size) / spacing) * spacing
         z0 = round((water_depth + drop) / spacing) * spacing
-        v, f = box_mesh(size, (x0 + 0.5 * size, y0 + 0.5 * size, z0 + 0.5 * size))
+        v, f = box_mesh((size, size, height), (x0 + 0.5 * size, y0 + 0.5 * size,
+                                               z0 + 0.5 * height))
         bodies.append(RigidBody(v, f, density=float(rho), friction=0.3))
     walls = Colliders(friction=0.3).add(~Box((0.0, 0.0, 0.0), tank))
     rigid = RigidBodies(bodies, colliders=walls)

@@ -27,32 +27,92 @@ from numba import njit, prange
 from ..elastic.fem_simulation import FEMSimulation
 from ..rigid import RigidBodies
 from ..rigid.quaternion import rotation_matrices
-from ..rigid.sdf import winding_number
+from ..rigid.sdf import body_distance, pack_sdfs, triangle_distance, winding_number
 from ..simulation import State
 from .samples import locate_in_tets, solid_layers
 
-__all__ = ["RigidPart", "ElasticPart", "make_part", "count_inside", "world_meshes"]
+__all__ = ["RigidPart", "ElasticPart", "make_part", "count_inside", "inside_depths",
+           "world_meshes"]
 
 
 @njit(parallel=True, cache=True)
-def _inside(points, v, f, lo, hi, out):
+def _depths(points, v, f, lo, hi, out):
     for i in prange(points.shape[0]):
-        out[i] = False
+        out[i] = 0.0
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         if lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and lo[2] <= z <= hi[2]:
-            out[i] = winding_number(x, y, z, v, f) > 0.5
+            if winding_number(x, y, z, v, f) > 0.5:
+                best = np.inf
+                for t in range(f.shape[0]):
+                    best = min(best, triangle_distance(x, y, z, v, f, t))
+                out[i] = math.sqrt(best)
+
+
+def inside_depths(points, vertices, faces) -> np.ndarray:
+    """How deep (m) each of ``points`` (N, 3) lies inside the closed mesh ``(vertices,
+    faces)``: its distance to the surface where the generalised winding number (Jacobson et
+    al. 2013) is above 1/2, else 0; (N,)."""
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    out = np.zeros(p.shape[0])
+    if p.shape[0]:
+        _depths(p, v, np.ascontiguousarray(faces, dtype=np.int64), v.min(axis=0),
+                v.max(axis=0), out)
+    return out
 
 
 def count_inside(points, vertices, faces) -> np.ndarray:
-    """Which ``points`` (N, 3) lie inside the closed mesh ``(vertices, faces)`` (generalised
-    winding number above 1/2, Jacobson et al. 2013); (N,) bool."""
-    p = np.ascontiguousarray(points, dtype=np.float64)
-    v = np.ascontiguousarray(vertices, dtype=np.float64)
-    out = np.zeros(p.shape[0], dtype=np.bool_)
-    if p.shape[0]:
-        _inside(p, v, np.ascontiguousarray(faces, dtype=np.int64), v.min(axis=0),
-                v.max(axis=0), out)
-    return out
+    """Which ``points`` (N, 3) lie inside the closed mesh ``(vertices, faces)``; (N,) bool."""
+    return inside_depths(points, vertices, faces) > 0.0
+
+
+@njit(cache=True)
+def _push_out(x, v, mass, packed, centers, rot, vel, ang, radius, gap, impulse):
+    kinds, plane_start, planes, grid_meta, grid_values = packed
+    count = 0
+    for i in range(x.shape[0]):
+        for b in range(centers.shape[0]):
+            dx = x[i, 0] - centers[b, 0]
+            dy = x[i, 1] - centers[b, 1]
+            dz = x[i, 2] - centers[b, 2]
+            if dx * dx + dy * dy + dz * dz > radius[b] * radius[b]:
+                continue
+            r = rot[b]
+            lx = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz  # R^T (x - c)
+            ly = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz
+            lz = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
+            d, n0, n1, n2 = body_distance(kinds, plane_start, planes, grid_meta, grid_values, b,
+                                          lx, ly, lz, 0.0, 0.0, 0.0, 0.0)
+            if d >= 0.0:
+                continue
+            nx = r[0, 0] * n0 + r[0, 1] * n1 + r[0, 2] * n2
+            ny = r[1, 0] * n0 + r[1, 1] * n1 + r[1, 2] * n2
+            nz = r[2, 0] * n0 + r[2, 1] * n1 + r[2, 2] * n2
+            step = gap - d
+            x[i, 0] += step * nx
+            x[i, 1] += step * ny
+            x[i, 2] += step * nz
+            # the body's velocity at the particle; remove the particle's approach along n
+            px = x[i, 0] - centers[b, 0]
+            py = x[i, 1] - centers[b, 1]
+            pz = x[i, 2] - centers[b, 2]
+            ux = v[i, 0] - (vel[b, 0] + ang[b, 1] * pz - ang[b, 2] * py)
+            uy = v[i, 1] - (vel[b, 1] + ang[b, 2] * px - ang[b, 0] * pz)
+            uz = v[i, 2] - (vel[b, 2] + ang[b, 0] * py - ang[b, 1] * px)
+            un = ux * nx + uy * ny + uz * nz
+            if un < 0.0:
+                jx, jy, jz = -mass * un * nx, -mass * un * ny, -mass * un * nz
+                v[i, 0] += jx / mass
+                v[i, 1] += jy / mass
+                v[i, 2] += jz / mass
+                impulse[b, 0] -= jx  # the body takes the opposite impulse
+                impulse[b, 1] -= jy
+                impulse[b, 2] -= jz
+                impulse[b, 3] -= py * jz - pz * jy
+                impulse[b, 4] -= pz * jx - px * jz
+                impulse[b, 5] -= px * jy - py * jx
+            count += 1
+    return count
 
 
 class RigidPart:
@@ -87,6 +147,7 @@ class RigidPart:
         self.local_normals = np.ascontiguousarray(np.concatenate(normals))
         self.owner = np.concatenate(owner)
         self.n_samples = self.local.shape[0]
+        self._packed = pack_sdfs([body.sdf for body in sim.model.bodies])
 
     def boundary(self):
         """World positions (m), velocities (m/s) and unit normals of the samples, (S, 3) each."""
@@ -99,6 +160,34 @@ class RigidPart:
     def volumes(self):
         """SPH volumes (m^3) of the samples (S,)."""
         return np.full(self.n_samples, self.volume)
+
+    def push_out(self, x, v, mass: float, gap: float) -> int:
+        """Put liquid particles found inside a body back ``gap`` (m) outside its surface, along
+        the surface normal, and take away their velocity into it relative to the body; the
+        body takes the opposite impulse (momentum is kept).  ``x`` and ``v`` (N, 3) of
+        particles of ``mass`` (kg) change in place.  Returns how many particles were moved.
+
+        The safety net of the bodies, as ``container`` is the tank's: the DFSPH wall
+        constraints hold the liquid off a body's faces, but at its convex corners the body
+        fills too little of a particle's kernel for them to act.
+        """
+        sim = self.sim
+        s = sim.state
+        rot = rotation_matrices(s.extra["orientations"])
+        bodies = sim.model.bodies
+        radius = np.array([b.radius for b in bodies]) + gap
+        impulse = np.zeros((len(bodies), 6))
+        w = s.extra["angular_velocities"]
+        count = _push_out(x, v, float(mass), self._packed, s.positions, rot, s.velocities, w,
+                          radius, float(gap), impulse)
+        if count:
+            for b, body in enumerate(bodies):
+                if body.fixed or not impulse[b].any():
+                    continue
+                s.velocities[b] += impulse[b, :3] / body.mass
+                inv = rot[b] @ np.linalg.inv(body.inertia) @ rot[b].T
+                w[b] += inv @ impulse[b, 3:]
+        return count
 
     def push(self, points, forces):
         """Apply the liquid's ``forces`` (S, 3) (N) at the samples' ``points`` (S, 3) for the next
@@ -202,6 +291,10 @@ class ElasticPart:
     def volumes(self):
         """SPH volumes (m^3) of the samples (S,)."""
         return np.full(self.n_samples, self.volume)
+
+    def push_out(self, x, v, mass: float, gap: float) -> int:
+        """No safety net for a deforming body (its surface has no distance function): 0."""
+        return 0
 
     def push(self, points, forces):
         """Spread the liquid's ``forces`` (S, 3) (N) over the nodes for the next step; returns
