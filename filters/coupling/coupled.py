@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..simulation import Frame, Simulation, State
@@ -216,9 +217,11 @@ class Coupled(Simulation):
     # -- stepping ---------------------------------------------------------------------------
     def _place(self) -> None:
         """Move every body's boundary particles to where the body is now."""
+        self._where = []
         for part, idx in zip(self.parts, self._indices):
             x, v, n = part.boundary()
             self.liquid.move_boundary(x, v, normals=n, indices=idx)
+            self._where.append(x)
 
     def max_step(self) -> float:
         """The smallest of the liquid's and the bodies' largest steps (s)."""
@@ -237,7 +240,20 @@ class Coupled(Simulation):
         if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite number > 0 (s), got {dt!r}")
         dt = float(dt)
-        where = [p.boundary()[0] for p in self.parts]
+        liquid = self.liquid
+        previous = numba.get_num_threads()
+        # the liquid's thread count for the whole step (waking threads for the small body
+        # kernels costs more than they save on a busy machine)
+        numba.set_num_threads(liquid.threads or (1 if liquid.state.n_points < 20_000
+                                                 else previous))
+        try:
+            self._step(dt)
+        finally:
+            numba.set_num_threads(previous)
+        self.steps_taken += 1
+
+    def _step(self, dt: float) -> None:
+        where = self._where
         self.liquid.step(dt)
         for k, (part, idx) in enumerate(zip(self.parts, self._indices)):
             forces = self.liquid.boundary_forces(idx)
@@ -250,7 +266,6 @@ class Coupled(Simulation):
             moved = part.push_out(s.positions, s.velocities, self.liquid.model.mass, gap)
             self.corrections += moved
         self._place()
-        self.steps_taken += 1
 
     def advance_to(self, time: float) -> None:
         """Step forward until the time is ``time`` exactly, as

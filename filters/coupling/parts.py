@@ -217,33 +217,37 @@ class RigidPart:
         return self.sim.momentum()[0]
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True)
 def _embedded(x, v, nodes, w, dm_inv, n0, out_x, out_v, out_n):
-    for s in prange(nodes.shape[0]):
+    for s in range(nodes.shape[0]):
         a, b, c, d = nodes[s, 0], nodes[s, 1], nodes[s, 2], nodes[s, 3]
         for k in range(3):
-            out_x[s, k] = w[s, 0] * x[a, k] + w[s, 1] * x[b, k] + w[s, 2] * x[c, k] + w[s, 3] * x[d, k]
-            out_v[s, k] = w[s, 0] * v[a, k] + w[s, 1] * v[b, k] + w[s, 2] * v[c, k] + w[s, 3] * v[d, k]
-        # deformation gradient F = Ds Dm^-1; the normal follows F^-T n0, i.e. cof(F) n0
-        ds = np.empty((3, 3))
-        for k in range(3):
-            ds[k, 0] = x[b, k] - x[a, k]
-            ds[k, 1] = x[c, k] - x[a, k]
-            ds[k, 2] = x[d, k] - x[a, k]
-        f = ds @ dm_inv[s]
-        cof = np.empty((3, 3))
-        cof[0, 0] = f[1, 1] * f[2, 2] - f[1, 2] * f[2, 1]
-        cof[0, 1] = f[1, 2] * f[2, 0] - f[1, 0] * f[2, 2]
-        cof[0, 2] = f[1, 0] * f[2, 1] - f[1, 1] * f[2, 0]
-        cof[1, 0] = f[0, 2] * f[2, 1] - f[0, 1] * f[2, 2]
-        cof[1, 1] = f[0, 0] * f[2, 2] - f[0, 2] * f[2, 0]
-        cof[1, 2] = f[0, 1] * f[2, 0] - f[0, 0] * f[2, 1]
-        cof[2, 0] = f[0, 1] * f[1, 2] - f[0, 2] * f[1, 1]
-        cof[2, 1] = f[0, 2] * f[1, 0] - f[0, 0] * f[1, 2]
-        cof[2, 2] = f[0, 0] * f[1, 1] - f[0, 1] * f[1, 0]
-        nx = cof[0, 0] * n0[s, 0] + cof[0, 1] * n0[s, 1] + cof[0, 2] * n0[s, 2]
-        ny = cof[1, 0] * n0[s, 0] + cof[1, 1] * n0[s, 1] + cof[1, 2] * n0[s, 2]
-        nz = cof[2, 0] * n0[s, 0] + cof[2, 1] * n0[s, 1] + cof[2, 2] * n0[s, 2]
+            out_x[s, k] = (w[s, 0] * x[a, k] + w[s, 1] * x[b, k] + w[s, 2] * x[c, k]
+                           + w[s, 3] * x[d, k])
+            out_v[s, k] = (w[s, 0] * v[a, k] + w[s, 1] * v[b, k] + w[s, 2] * v[c, k]
+                           + w[s, 3] * v[d, k])
+        # deformation gradient F = Ds Dm^-1; the normal follows F^-T n0 = cof(F) n0 / det F
+        f00 = f01 = f02 = f10 = f11 = f12 = f20 = f21 = f22 = 0.0
+        for m in range(3):
+            e0 = x[b, m] - x[a, m]
+            e1 = x[c, m] - x[a, m]
+            e2 = x[d, m] - x[a, m]
+            r0 = e0 * dm_inv[s, 0, 0] + e1 * dm_inv[s, 1, 0] + e2 * dm_inv[s, 2, 0]
+            r1 = e0 * dm_inv[s, 0, 1] + e1 * dm_inv[s, 1, 1] + e2 * dm_inv[s, 2, 1]
+            r2 = e0 * dm_inv[s, 0, 2] + e1 * dm_inv[s, 1, 2] + e2 * dm_inv[s, 2, 2]
+            if m == 0:
+                f00, f01, f02 = r0, r1, r2
+            elif m == 1:
+                f10, f11, f12 = r0, r1, r2
+            else:
+                f20, f21, f22 = r0, r1, r2
+        p0, p1, p2 = n0[s, 0], n0[s, 1], n0[s, 2]
+        nx = ((f11 * f22 - f12 * f21) * p0 + (f12 * f20 - f10 * f22) * p1
+              + (f10 * f21 - f11 * f20) * p2)
+        ny = ((f02 * f21 - f01 * f22) * p0 + (f00 * f22 - f02 * f20) * p1
+              + (f01 * f20 - f00 * f21) * p2)
+        nz = ((f01 * f12 - f02 * f11) * p0 + (f02 * f10 - f00 * f12) * p1
+              + (f00 * f11 - f01 * f10) * p2)
         length = math.sqrt(nx * nx + ny * ny + nz * nz)
         if length > 0.0:
             out_n[s, 0] = nx / length
