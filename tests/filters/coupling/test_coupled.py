@@ -24,7 +24,7 @@ def _lattice(lo, hi, s):
 
 
 def _pool(bodies, *, s=0.01, tank=(0.12, 0.12, 0.2), depth=0.1, gravity=(0.0, 0.0, -G),
-          water=None, nu=1e-4):
+          water=None, nu=1e-4, **options):
     """A pool in a closed tank with the rigid bodies ``bodies`` (a RigidBodies) in it."""
     x = _lattice((0, 0, 0), (tank[0], tank[1], depth), s) if water is None else water
     for v, f in world_meshes(bodies):
@@ -33,7 +33,7 @@ def _pool(bodies, *, s=0.01, tank=(0.12, 0.12, 0.2), depth=0.1, gravity=(0.0, 0.
     liquid = SPHLiquid(x, spacing=s, boundary=coupled_boundary(walls, bodies, s),
                        solver="dfsph", gravity=gravity, kinematic_viscosity=nu, max_dt=0.005,
                        initial_pressure=hydrostatic_pressure(x, s, gravity),
-                       container=((0, 0, 0), tank))
+                       container=((0, 0, 0), tank), **options)
     return Coupled(liquid, bodies)
 
 
