@@ -1,7 +1,7 @@
 """How much of a particle's kernel a solid occupies, as a function of its distance to a flat wall.
 
 A fluid particle at distance ``d`` from a flat solid half-space (``d < 0``: inside it) sees the
-solid fill the fraction
+solid fill the fraction::
 
     Phi(d) = integral over the half-space of W(|x - x_i|) dV,      Phi(h) = 0, Phi(0) = 1/2,
 

@@ -232,7 +232,8 @@ def test_particle_frames_hold_no_state_and_at_most_100_bytes_a_particle(tmp_path
     n = flow.source.simulation.state.n_points
     assert n > 1500
     for (t, name), frame in zip(read_collection(out / "particles.pvd"), frames):
-        assert list(frame.field_data.keys()) == ["TimeValue"]
+        # no checkpoint arrays: the time and the safety net's count are all the field data
+        assert sorted(frame.field_data.keys()) == ["TimeValue", "container_corrections"]
         size = (out / name).stat().st_size
         assert size <= 100 * n, f"frame t = {t}: {size / n:.1f} bytes a particle"
     assert sorted(frames[-1].point_data.keys()) == ["density", "id", "pressure", "velocity"]
