@@ -111,7 +111,7 @@ def write_bodies(stage, name: str, meshes, codes) -> None:
         deforming.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(fi))
         points_attr = deforming.CreatePointsAttr()
         extent_attr = deforming.CreateExtentAttr()
-    for code, mesh in zip(codes, meshes):
+    for code, mesh in zip(codes, meshes, strict=True):
         q = _rows(mesh, "body_orientation", 4)
         t = _rows(mesh, "body_translation", 3)
         for k, (translate, orient) in enumerate(ops):

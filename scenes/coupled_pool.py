@@ -35,7 +35,7 @@ def pool_lattice(tank, depth: float, spacing: float, meshes=()) -> np.ndarray:
 def check_pool(tank, depth, spacing):
     """Validate the tank (m), the water depth (m) and the spacing (m) before any work."""
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
-    for name, value in zip(("tank_length", "tank_width", "tank_height"), tank):
+    for name, value in zip(("tank_length", "tank_width", "tank_height"), tank, strict=True):
         check_range(name, value, 4 * spacing, 100.0)
     check_range("water_depth", depth, 2 * spacing, tank[2])
     count = tank[0] * tank[1] * depth / spacing ** 3

@@ -159,7 +159,7 @@ class Coupled(Simulation):
         spacing, support_factor, kernel = _liquid_kernel(liquid)
         parts = _parts(bodies, spacing, support_factor, kernel)
         for part in parts:
-            g = np.asarray(getattr(part.sim.model, "gravity"), dtype=np.float64)
+            g = np.asarray(part.sim.model.gravity, dtype=np.float64)
             if not np.allclose(g, liquid.gravity, rtol=0.0, atol=1e-12):
                 raise ValueError(f"the bodies' gravity {g.tolist()} differs from the liquid's "
                                  f"{liquid.gravity.tolist()}")
@@ -218,7 +218,7 @@ class Coupled(Simulation):
     def _place(self) -> None:
         """Move every body's boundary particles to where the body is now."""
         self._where = []
-        for part, idx in zip(self.parts, self._indices):
+        for part, idx in zip(self.parts, self._indices, strict=True):
             x, v, n = part.boundary()
             self.liquid.move_boundary(x, v, normals=n, indices=idx)
             self._where.append(x)
@@ -255,7 +255,7 @@ class Coupled(Simulation):
     def _step(self, dt: float) -> None:
         where = self._where
         self.liquid.step(dt)
-        for k, (part, idx) in enumerate(zip(self.parts, self._indices)):
+        for k, (part, idx) in enumerate(zip(self.parts, self._indices, strict=True)):
             forces = self.liquid.boundary_forces(idx)
             self.last_body_forces[k] = part.push(where[k], forces)
             part.step(dt)

@@ -33,7 +33,7 @@ def test_floating_scene_small(tmp_path, capsys):
     assert len(bodies) == len(water) == len(times) >= 40
     n = water[0].n_points
     size, height = p["box_size"], p["box_height"]
-    for w, b in zip(water, bodies):
+    for w, b in zip(water, bodies, strict=True):
         assert w.n_points == n
         assert np.asarray(w.field_data["fluid_penetration"]).tolist() == [0.0]
         # each box's mesh is its mesh as given, rotated and translated by its field data
