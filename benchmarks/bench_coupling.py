@@ -64,7 +64,8 @@ def coupled(s):
         y0 = round((TANK[1] / 2 - SIZE / 2) / s) * s
         v, f = box_mesh((SIZE, SIZE, HEIGHT), (x0 + SIZE / 2, y0 + SIZE / 2, z0 + HEIGHT / 2))
         bodies.append(RigidBody(v, f, density=rho, friction=0.3))
-    rigid = RigidBodies(bodies, colliders=Colliders(friction=0.3).add(~Box((0, 0, 0), TANK)))
+    rigid = RigidBodies(bodies, colliders=Colliders(friction=0.3).add(~Box((0, 0, 0), TANK)),
+                        max_dt=0.005)
     x = _lattice(DEPTH, s)
     for v, f in world_meshes(rigid):
         x = x[~count_inside(x, v, f)]

@@ -98,7 +98,7 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.45, tank_width: float
                                                z0 + 0.5 * height))
         bodies.append(RigidBody(v, f, density=float(rho), friction=0.3))
     walls = Colliders(friction=0.3).add(~Box((0.0, 0.0, 0.0), tank))
-    rigid = RigidBodies(bodies, colliders=walls)
+    rigid = RigidBodies(bodies, colliders=walls, max_dt=max_dt)
     return coupled_flow([rigid], tank=tank, depth=water_depth, spacing=spacing, fps=SCENE_FPS,
                         duration=SCENE_DURATION, kinematic_viscosity=kinematic_viscosity,
                         cfl=cfl, max_dt=max_dt, surface=surface,

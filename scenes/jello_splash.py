@@ -29,7 +29,7 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.3, tank_width: float 
           tank_height: float = 0.35, water_depth: float = 0.12, radius: float = 0.06,
           drop_height: float = 0.06, density: float = 600.0, youngs_modulus: float = 3e4,
           poisson_ratio: float = 0.45, damping: float = 0.002, lattice: float = 0.02,
-          kinematic_viscosity: float = 1e-4, cfl: float = 0.4, max_dt: float = 1.0 / 240.0,
+          kinematic_viscosity: float = 1e-4, cfl: float = 0.4, max_dt: float = 0.005,
           surface: bool = True, smooth_iterations: int = 30, feature_smoothing: int = 25,
           anisotropic: bool = True) -> Flow:
     """Drop a jello ball into a pool (10,800 water particles with the defaults).
