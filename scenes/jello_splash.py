@@ -38,8 +38,12 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.3, tank_width: float 
     ----------
     spacing : float
         Water particle spacing (m), > 0.
-    tank_length, tank_width, tank_height : float
-        Inner size of the closed tank (m).
+    tank_length : float
+        Inner length of the closed tank along x (m), at least four spacings.
+    tank_width : float
+        Inner width of the tank along y (m), at least four spacings.
+    tank_height : float
+        Inner height of the tank (m), at least four spacings.
     water_depth : float
         Depth of the pool (m), at least two spacings.
     radius : float
@@ -64,8 +68,10 @@ def build(*, spacing: float = 0.01, tank_length: float = 0.3, tank_width: float 
         Largest time step (s) of water and jello, in (0, 1].
     surface : bool
         Also write the water surface.
-    smooth_iterations, feature_smoothing : int
-        Smoothing of the water surface (see ``dam_break``).
+    smooth_iterations : int
+        Windowed-sinc smoothing iterations of the water surface (0 to 1000).
+    feature_smoothing : int
+        Feature-weighted Laplacian smoothing sweeps of the water surface (0 to 10000).
     anisotropic : bool
         Anisotropic kernels for the water surface.
     """
