@@ -63,6 +63,9 @@ RUNS = [
     ("dam_break_wcsph_isotropic", ["run", "dam_break", "--frames", "3", "--set", "spacing=0.02",
                                    "--set", "solver=wcsph", "--set", "anisotropic=false"]),
     ("drop", ["run", "drop", "--frames", "3", "--set", "spacing=0.02"]),
+    ("floating", ["run", "floating", "--frames", "3", "--set", "spacing=0.025",
+                  "--set", "box_height=0.05"]),
+    ("jello_splash", ["run", "jello_splash", "--frames", "3", "--set", "spacing=0.025"]),
     # `blobflow surface` over a copy of a particle series without its scene.json, with every
     # option given, so that only the code (not a default) decides the result
     ("particles_copy", ["copy-series", "{root}/dam_break/particles.pvd"]),

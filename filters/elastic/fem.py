@@ -272,6 +272,10 @@ class FEMSystem(ImplicitSystem):
         self._cache_force = np.empty((n, 3))
         self._cache_energy = 0.0
         self._damp_x = None  # positions of the frozen damping stiffness (in the pattern)
+        #: Constant nodal loads (N, 3) (N) of the next steps, e.g. a liquid's pressure on the
+        #: solid (:mod:`filters.coupling`), or None.  Like gravity they enter the forces and,
+        #: as ``-sum f . x``, the potential energy, so Newton's line search sees them.
+        self.loads = None
 
     @property
     def n_tets(self) -> int:
@@ -341,18 +345,23 @@ class FEMSystem(ImplicitSystem):
 
     # -- ImplicitSystem ----------------------------------------------------------------------
     def forces(self, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Total force (N): elastic, gravity and damping, (N, 3)."""
+        """Total force (N): elastic, gravity, :attr:`loads` and damping, (N, 3)."""
         f = np.empty_like(x) if out is None else out
         f[...] = self._elastic(x)[0]
         f += self.masses[:, None] * self.gravity[None, :]
+        if self.loads is not None:
+            f += self.loads
         f += self.damping_forces(x, v)
         return f
 
     def conservative_forces(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Elastic and gravity forces (N), (N, 3); contacts are the integrators'."""
+        """Elastic, gravity and :attr:`loads` forces (N), (N, 3); contacts are the
+        integrators'."""
         f = np.empty_like(x) if out is None else out
         f[...] = self._elastic(x)[0]
         f += self.masses[:, None] * self.gravity[None, :]
+        if self.loads is not None:
+            f += self.loads
         return f
 
     def damping_forces(self, xdir: np.ndarray, v: np.ndarray,
@@ -375,8 +384,11 @@ class FEMSystem(ImplicitSystem):
         return float(-np.einsum("i,ij,j->", self.masses, x, self.gravity))
 
     def potential_energy(self, x: np.ndarray) -> float:
-        """Elastic plus gravitational energy (J)."""
-        return self.elastic_energy(x) + self.gravitational_energy(x)
+        """Elastic plus gravitational energy (J), and ``-sum f . x`` of the :attr:`loads`."""
+        e = self.elastic_energy(x) + self.gravitational_energy(x)
+        if self.loads is not None:
+            e -= float(np.einsum("ij,ij->", self.loads, x))
+        return e
 
     def kinetic_energy(self, v: np.ndarray) -> float:
         """Kinetic energy (J)."""

@@ -121,11 +121,13 @@ class BoundaryParticles:
 
 def concatenate_boundaries(*parts: BoundaryParticles) -> BoundaryParticles:
     """Join several :class:`BoundaryParticles` (e.g. a tank and an obstacle) into one, in order
-    (the particles of ``parts[1]`` follow those of ``parts[0]``, and so on)."""
+    (the particles of ``parts[1]`` follow those of ``parts[0]``, and so on), with their
+    normals, velocities and friction factors."""
     if not parts:
         return BoundaryParticles(np.zeros((0, 3)), np.zeros(0))
-    return BoundaryParticles(np.concatenate([p.points for p in parts]),
-                             np.concatenate([p.volumes for p in parts]))
+    return BoundaryParticles(*(np.concatenate([getattr(p, name) for p in parts])
+                               for name in ("points", "volumes", "normals", "velocities",
+                                            "friction")))
 
 
 def lattice_volume(spacing: float, support_m: float, kernel: str = "cubic") -> float:

@@ -109,8 +109,10 @@ class BoundarySet:
                 self.sorted_normals, self.sorted_velocities, self.moving)
 
     def move(self, points: ArrayLike | None = None, velocities: ArrayLike | None = None,
-             volumes: ArrayLike | None = None, indices: ArrayLike | None = None) -> None:
-        """Set new positions, velocities and/or volumes of (some of) the boundary particles.
+             volumes: ArrayLike | None = None, indices: ArrayLike | None = None,
+             normals: ArrayLike | None = None) -> None:
+        """Set new positions, velocities, volumes and/or normals of (some of) the boundary
+        particles.
 
         Parameters
         ----------
@@ -125,12 +127,15 @@ class BoundarySet:
             deformed surface.
         indices : (K,) array_like of int, optional
             Which particles, in the order of the ``BoundaryParticles`` the liquid was built with.
+        normals : (K, 3) array_like, optional
+            Their unit normals (a rotated body's), which tell its walls apart
+            (:mod:`filters.sph.dfsph`); unit vectors or zeros.
 
         Raises
         ------
         ValueError
-            For arrays of the wrong shape, non-finite values, volumes <= 0 or indices out of
-            range, before anything changes.
+            For arrays of the wrong shape, non-finite values, volumes <= 0, normals that are
+            neither unit nor zero, or indices out of range, before anything changes.
         """
         m = self.n_points
         if indices is None:
@@ -144,7 +149,7 @@ class BoundarySet:
         k = sel.shape[0]
         new = {}
         for name, value, shape in (("points", points, (k, 3)), ("velocities", velocities, (k, 3)),
-                                   ("volumes", volumes, (k,))):
+                                   ("volumes", volumes, (k,)), ("normals", normals, (k, 3))):
             if value is None:
                 continue
             a = np.asarray(value, dtype=np.float64)
@@ -153,6 +158,10 @@ class BoundarySet:
                                  f"got {a.shape}")
             if name == "volumes" and not (a > 0).all():
                 raise ValueError("volumes must be > 0 (m^3)")
+            if name == "normals":
+                length = np.sqrt((a * a).sum(axis=1))
+                if np.abs(length[length > 0] - 1.0).max(initial=0.0) > 1e-6:
+                    raise ValueError("normals must be unit vectors (or zero where unknown)")
             new[name] = a
         for name, a in new.items():
             full = getattr(self, name).copy()

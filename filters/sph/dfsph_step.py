@@ -169,7 +169,8 @@ class DFSPHStepper:
             amax = float(np.linalg.norm(g))
         amax = liquid.add_external(self.a, amax)
         solver.kick(v, self.a, dt)
-        liquid.last_viscosity_iterations = solver.viscosity_solve(v, x, dt, self.nu, self.nu_b)
+        liquid.last_viscosity_iterations = solver.viscosity_solve(
+            v, x, dt, self.nu, self.nu_b, tolerance=liquid.viscosity_tolerance)
         viscous = v.copy() if self.nu_b > 0.0 and liquid.boundary_set.n_points else None
         solver.density_solve(v, rho, m.rest_density, dt, ex["pi"])
         liquid.last_density_iterations = solver.density_iterations

@@ -11,7 +11,10 @@ Each series becomes one prim under ``/blobflow`` (its name), with one time sampl
   ``velocities``;
 - strands (lines) -> ``UsdGeom.BasisCurves`` (linear): ``points``, ``curveVertexCounts``,
   ``widths``;
-- volumes (unstructured grids) -> their boundary surface as a ``UsdGeom.Mesh``.
+- volumes (unstructured grids) -> their boundary surface as a ``UsdGeom.Mesh``;
+- rigid bodies (the ``bodies`` of a scene with bodies in the water) -> one ``UsdGeom.Xform``
+  per body with sampled ``translate`` and ``orient`` ops over its mesh as given
+  (:mod:`pipeline.io.usd_bodies`).
 
 The stage is z-up in metres (``upAxis = "Z"``, ``metersPerUnit = 1``), ``timeCodesPerSecond``
 and ``framesPerSecond`` are the series' frame rate, and a frame at time ``t`` (s) is time code
@@ -32,6 +35,7 @@ import numpy as np
 from filters.validation import check_range
 
 from .outfiles import atomic_path
+from .usd_bodies import has_rigid_bodies, write_bodies
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -362,6 +366,9 @@ def _write_stage(tmp, names, paths, loaded, all_codes, fps, radius, Usd, UsdGeom
     stage.SetDefaultPrim(root.GetPrim())
     for name, path, (times, meshes), series_codes in zip(names, paths, loaded, all_codes,
                                                           strict=False):
+        if has_rigid_bodies(meshes):
+            write_bodies(stage, name, meshes, [float(c) for c in series_codes])
+            continue
         _write_series(stage, path, name, times, meshes, [float(c) for c in series_codes],
                       radius, UsdGeom, Vt)
     stage.GetRootLayer().Save()

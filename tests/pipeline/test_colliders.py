@@ -27,6 +27,8 @@ SCENE_RUNS = {
     "jello_drop": {"spacing": 0.08, "radius": 0.1},
     "jello_fem": {"spacing": 0.08, "radius": 0.1},
     "noise_smoke": {"rate": 100.0, "max_particles": 20, "ball_radius": 0.1, "ball_height": 0.5},
+    "floating": {"spacing": 0.02, "box_height": 0.06, "surface": False},
+    "jello_splash": {"spacing": 0.025, "surface": False},
 }
 
 
@@ -44,6 +46,13 @@ def _expected(name, p):
     if name == "drop":
         return {"tank": ("container", "box_container",
                          [0, 0, 0, p["tank_length"], p["tank_width"], p["tank_height"]])}
+    if name in ("floating", "jello_splash"):  # the scenes' default tanks
+        from pipeline.scene import load_scene
+
+        d = load_scene(name).parameters
+        return {"tank": ("container", "box_container",
+                         [0, 0, 0] + [d[k].default for k in ("tank_length", "tank_width",
+                                                             "tank_height")])}
     if name == "hair":  # the head the roots sit on
         return {"head": ("solid", "sphere", [0, 0, 1.5, p["head_radius"]])}
     if name in ("jello_drop", "jello_fem"):

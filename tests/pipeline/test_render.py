@@ -31,6 +31,8 @@ SMALL_SCENES = {
     "jello_fem": ({"spacing": 0.06}, 3),
     "hair": ({"strands": 12, "segments": 5}, 3),
     "noise_smoke": ({"rate": 600.0, "max_particles": 400}, 6),
+    "floating": ({"spacing": 0.025, "box_height": 0.05, "smooth_iterations": 5}, 3),
+    "jello_splash": ({"spacing": 0.025, "smooth_iterations": 5}, 3),
 }
 
 
