@@ -46,7 +46,7 @@ class BodyMeshes(Algorithm):
         triangles and where its rows are in the field data.
     """
 
-    def __init__(self, layout):
+    def __init__(self, layout: list[dict]):
         if not isinstance(layout, (list, tuple)) or not layout:
             raise ValueError("layout must be a non-empty list (Coupled.body_mesh_layout())")
         self.layout = list(layout)

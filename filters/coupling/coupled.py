@@ -30,12 +30,13 @@ density at the liquid's own step.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from ..simulation import Frame, Simulation, State
+from ..simulation import Frame, OutputSpec, Simulation, State
 from ..sph.boundary import BoundaryParticles, concatenate_boundaries
 from ..sph.liquid import SPHLiquid
 from .parts import inside_depths, make_part, merge_state, split_state
@@ -62,7 +63,8 @@ def _parts(bodies, spacing, support_factor, kernel):
     return [make_part(b, spacing, support_factor, kernel) for b in bodies]
 
 
-def coupled_boundary(walls: BoundaryParticles | None, bodies, spacing: float, *,
+def coupled_boundary(walls: BoundaryParticles | None, bodies: Sequence[Simulation],
+                     spacing: float, *,
                      support_factor: float = 2.0, kernel: str = "cubic") -> BoundaryParticles:
     """The boundary of a liquid with bodies in it: the walls, then every body's particles.
 
@@ -150,7 +152,7 @@ class Coupled(Simulation):
     each body in the last step.
     """
 
-    def __init__(self, liquid: SPHLiquid, bodies):
+    def __init__(self, liquid: SPHLiquid, bodies: Simulation | Sequence[Simulation]):
         if not isinstance(liquid, SPHLiquid):
             raise TypeError(f"liquid must be an SPHLiquid, got {type(liquid).__name__}")
         if liquid.model.solver != "dfsph":
@@ -211,7 +213,7 @@ class Coupled(Simulation):
         return [p.sim for p in self.parts]
 
     @property
-    def output_spec(self):
+    def output_spec(self) -> OutputSpec:
         return self.liquid.output_spec
 
     # -- stepping ---------------------------------------------------------------------------

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
+from numpy.typing import ArrayLike
 
 from ..elastic.fem_simulation import FEMSimulation
 from ..rigid import RigidBodies
@@ -48,7 +49,7 @@ def _depths(points, v, f, lo, hi, out):
                 out[i] = math.sqrt(best)
 
 
-def inside_depths(points, vertices, faces) -> np.ndarray:
+def inside_depths(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
     """How deep (m) each of ``points`` (N, 3) lies inside the closed mesh ``(vertices,
     faces)``: its distance to the surface where the generalised winding number (Jacobson et
     al. 2013) is above 1/2, else 0; (N,)."""
@@ -61,7 +62,7 @@ def inside_depths(points, vertices, faces) -> np.ndarray:
     return out
 
 
-def count_inside(points, vertices, faces) -> np.ndarray:
+def count_inside(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike) -> np.ndarray:
     """Which ``points`` (N, 3) lie inside the closed mesh ``(vertices, faces)``; (N,) bool."""
     return inside_depths(points, vertices, faces) > 0.0
 
@@ -149,7 +150,7 @@ class RigidPart:
         self.n_samples = self.local.shape[0]
         self._packed = pack_sdfs([body.sdf for body in sim.model.bodies])
 
-    def boundary(self):
+    def boundary(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World positions (m), velocities (m/s) and unit normals of the samples, (S, 3) each."""
         x, v = self.sim.to_world(self.local, self.owner)
         rot = rotation_matrices(self.sim.state.extra["orientations"])
@@ -157,11 +158,11 @@ class RigidPart:
         n /= np.sqrt((n * n).sum(axis=1))[:, None]
         return x, v, n
 
-    def volumes(self):
+    def volumes(self) -> np.ndarray:
         """SPH volumes (m^3) of the samples (S,)."""
         return np.full(self.n_samples, self.volume)
 
-    def push_out(self, x, v, mass: float, gap: float) -> int:
+    def push_out(self, x: np.ndarray, v: np.ndarray, mass: float, gap: float) -> int:
         """Put liquid particles found inside a body back ``gap`` (m) outside its surface, along
         the surface normal, and take away their velocity into it relative to the body; the
         body takes the opposite impulse (momentum is kept).  ``x`` and ``v`` (N, 3) of
@@ -189,7 +190,7 @@ class RigidPart:
                 w[b] += inv @ impulse[b, 3:]
         return count
 
-    def push(self, points, forces):
+    def push(self, points: np.ndarray, forces: np.ndarray) -> np.ndarray:
         """Apply the liquid's ``forces`` (S, 3) (N) at the samples' ``points`` (S, 3) for the next
         step; returns the force and torque per body, (B, 6)."""
         return self.sim.apply_point_forces(points, forces, self.owner)
@@ -198,7 +199,7 @@ class RigidPart:
         """Advance the bodies by ``dt`` (s)."""
         self.sim.step(dt)
 
-    def meshes(self):
+    def meshes(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """World vertices (V, 3) and triangles of every body, as a list of pairs."""
         return world_meshes(self.sim)
 
@@ -284,7 +285,7 @@ class ElasticPart:
         self.n_samples = layer.n_points
         self.triangles = emb.triangles
 
-    def boundary(self):
+    def boundary(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World positions (m), velocities (m/s) and unit normals of the samples, (S, 3) each."""
         s = self.sim.state
         out = [np.empty((self.n_samples, 3)) for _ in range(3)]
@@ -292,15 +293,15 @@ class ElasticPart:
                   self.rest_normals, *out)
         return tuple(out)
 
-    def volumes(self):
+    def volumes(self) -> np.ndarray:
         """SPH volumes (m^3) of the samples (S,)."""
         return np.full(self.n_samples, self.volume)
 
-    def push_out(self, x, v, mass: float, gap: float) -> int:
+    def push_out(self, x: np.ndarray, v: np.ndarray, mass: float, gap: float) -> int:
         """No safety net for a deforming body (its surface has no distance function): 0."""
         return 0
 
-    def push(self, points, forces):
+    def push(self, points: np.ndarray, forces: np.ndarray) -> np.ndarray:
         """Spread the liquid's ``forces`` (S, 3) (N) over the nodes for the next step; returns
         the total force (N) and torque (N m) about the solid's centre of mass, (1, 6)."""
         n = self.sim.state.n_points
@@ -322,7 +323,7 @@ class ElasticPart:
         finally:
             self.sim.system.loads = None
 
-    def meshes(self):
+    def meshes(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """The embedded surface where it is now: [(vertices (M, 3), triangles)]."""
         return world_meshes(self.sim)
 
@@ -335,7 +336,7 @@ class ElasticPart:
         return (self.sim.system.masses[:, None] * self.sim.state.velocities).sum(axis=0)
 
 
-def world_meshes(sim) -> list:
+def world_meshes(sim: RigidBodies | FEMSimulation) -> list[tuple[np.ndarray, np.ndarray]]:
     """The surfaces of a body simulation where they are now: a list of ``(vertices (V, 3),
     triangles (T, 3))`` (a rigid body's mesh moved to its pose; a solid's embedded surface)."""
     if isinstance(sim, RigidBodies):
@@ -349,7 +350,8 @@ def world_meshes(sim) -> list:
                     f"{type(sim).__name__}")
 
 
-def make_part(sim, spacing: float, support_factor: float, kernel: str):
+def make_part(sim: RigidBodies | FEMSimulation, spacing: float, support_factor: float,
+              kernel: str) -> RigidPart | ElasticPart:
     """The part for a body simulation: :class:`RigidPart` or :class:`ElasticPart`."""
     if isinstance(sim, RigidBodies):
         return RigidPart(sim, spacing, support_factor, kernel)

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
+from numpy.typing import ArrayLike
 
 from ..kernels import kernel_id
 from ..rigid.sdf import body_distances, face_planes, grid_sdf, is_convex, pack_sdfs
@@ -30,7 +31,8 @@ from ..validation import check_int, check_range
 __all__ = ["solid_layers", "mesh_distances", "locate_in_tets"]
 
 
-def mesh_distances(vertices, faces, points, resolution: int = 64):
+def mesh_distances(vertices: ArrayLike, faces: ArrayLike, points: ArrayLike,
+                   resolution: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance (m, negative inside) and outward unit normal of a closed triangle mesh
     at ``points``.
 
@@ -68,9 +70,9 @@ def mesh_distances(vertices, faces, points, resolution: int = 64):
     return d, n
 
 
-def solid_layers(vertices, faces, spacing: float, *, support_factor: float = 2.0,
+def solid_layers(vertices: ArrayLike, faces: ArrayLike, spacing: float, *, support_factor: float = 2.0,
                  kernel: str = "cubic", layers: int | None = None,
-                 origin=None) -> BoundaryParticles:
+                 origin: ArrayLike | None = None) -> BoundaryParticles:
     """Boundary particles filling the outer layers of the inside of a closed triangle mesh.
 
     The samples are the cell centres ``origin + (i + 1/2) spacing`` of a lattice that lie inside
@@ -159,7 +161,8 @@ def _locate(points, x, tets, inverse, out_tet, out_w):
                 out_w[i, 3] = b3
 
 
-def locate_in_tets(points, positions, tets):
+def locate_in_tets(points: ArrayLike, positions: ArrayLike,
+                   tets: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """The tetrahedron holding each point and its barycentric weights.
 
     A point outside every tetrahedron gets the one it is least outside of, with weights that

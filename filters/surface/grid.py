@@ -444,7 +444,8 @@ class SparseGrid:
         keys = np.unique(pack_keys(bricks))
         return unpack_keys(keys)
 
-    def may_cross(self, bricks: np.ndarray, group: int = 4, table=None) -> np.ndarray:
+    def may_cross(self, bricks: np.ndarray, group: int = 4,
+                  table: tuple | None = None) -> np.ndarray:
         """Which bricks may hold a sign change, decided from their blocks without filling them.
 
         A brick's voxels lie in the ``(group + 1)^3`` blocks it touches; where those hold only

@@ -11,7 +11,15 @@ other bodies (elastic ones, after the rigid ones) become the deforming mesh ``de
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import pyvista as pv
+    from pxr import Usd
 
 __all__ = ["has_rigid_bodies", "write_bodies"]
 
@@ -22,7 +30,7 @@ def _rows(mesh, name, width):
     return np.asarray(mesh.field_data[name], dtype=np.float64).reshape(-1, width)
 
 
-def has_rigid_bodies(meshes) -> bool:
+def has_rigid_bodies(meshes: Sequence[pv.DataSet]) -> bool:
     """Whether a series' frames carry rigid bodies' transforms and a ``body`` point array."""
     if not meshes:
         return False
@@ -62,7 +70,8 @@ def _sub_mesh(counts, conn, offsets, keep_points):
     return counts[faces].astype(np.int32), new[conn[sel]].astype(np.int32)
 
 
-def write_bodies(stage, name: str, meshes, codes) -> None:
+def write_bodies(stage: Usd.Stage, name: str, meshes: Sequence[pv.DataSet],
+                 codes: Sequence[float]) -> None:
     """Write a series of bodies' meshes under ``/blobflow/NAME`` (see the module notes).
 
     Parameters
