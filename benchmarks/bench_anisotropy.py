@@ -70,10 +70,9 @@ if str(ROOT.parent) not in sys.path:
 
 from filters.surface.anisotropy import DEFAULTS as ANISO_DEFAULTS  # noqa: E402
 from filters.surface.anisotropy import anisotropic_kernels  # noqa: E402
-from filters.surface.splat import splat_sparse  # noqa: E402
 from filters.surface.ellipsoids import ANISOTROPIC_ISO  # noqa: E402
-from filters.surface.splat import splat_sparse_anisotropic  # noqa: E402
 from filters.surface.mesh import mesh_stats  # noqa: E402
+from filters.surface.splat import splat_sparse, splat_sparse_anisotropic  # noqa: E402
 from filters.surface.volumes import STRETCHED_GAIN  # noqa: E402
 
 S = 0.02
@@ -113,8 +112,8 @@ def _contour(grid):
 
 
 def _smooth(points, tris):
-    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
     from pipeline.surface import Smooth
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
 
     s = Smooth()
     s.SetInputDataObject(mesh_to_polydata(points, tris))
@@ -257,8 +256,8 @@ def cube_sharpness(points, lo, hi):
 def sph_pool(seconds=1.5, shape=(20, 20, 8)):
     """A pool of ``shape`` particles settled by SPHLiquid in a closed tank that it fills
     horizontally; returns (positions, info)."""
-    from filters.sph.boundary import box_boundary
     from filters.sph import SPHLiquid
+    from filters.sph.boundary import box_boundary
 
     nx, ny, nz = shape
     lower = np.zeros(3)
@@ -286,8 +285,8 @@ def scene_surface(x, tank_lo, tank_hi, anisotropic):
     import pyvista as pv
 
     from pipeline.algorithm import run_chain
-    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import surface_stages
+    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface.options import liquid_surface_options
 
     options = liquid_surface_options(2 * R, tank_lo, tank_hi, anisotropic=anisotropic,

@@ -26,8 +26,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.io.convert import state_to_field_data  # noqa: E402
-from pipeline.scene import load_scene  # noqa: E402
 from pipeline.io.series import read_frame, write_frame  # noqa: E402
+from pipeline.scene import load_scene  # noqa: E402
 
 
 def measure(scene: str, frames: int, folder: Path) -> dict:

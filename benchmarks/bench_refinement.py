@@ -67,8 +67,9 @@ def _complete(folder: Path, spacing: float, duration: float) -> bool:
 def analyse(folder: Path) -> list[dict]:
     """Per frame: time, particle count, the container corrections so far (the safety net),
     mean and worst compression, largest speed."""
-    from pipeline.io.series import read_collection, read_frame
     from vtkmodules.util import numpy_support
+
+    from pipeline.io.series import read_collection, read_frame
 
     rows = []
     for t, name in read_collection(folder / "particles.pvd"):

@@ -300,8 +300,9 @@ def part_nsearch(compare_passes=True):
     from numba import njit, prange
     from scipy.spatial import cKDTree
 
+    from filters.binning import cell_keys as _grid_keys
+    from filters.binning import counting_sort as _counting_sort
     from filters.kernels import cubic_dw, cubic_w
-    from filters.binning import cell_keys as _grid_keys, counting_sort as _counting_sort
     from filters.neighbors import NeighborSearch, grid_query_padded
 
     out = {}

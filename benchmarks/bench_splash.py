@@ -100,8 +100,8 @@ def scene_surface(x, spacing, tank=None, **options):
     import pyvista as pv
 
     from pipeline.algorithm import run_chain
-    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import surface_stages
+    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface.options import liquid_surface_options
 
     lo, hi = tank if tank is not None else (None, None)
@@ -359,7 +359,7 @@ def _temporal_rest(frames, spacing, tank, report):
                      ("splashsurf", lambda x: splashsurf_surface(x, spacing))):
         meshes = [fn(x) for x in frames]
         per_frame = []
-        for a, b in zip(meshes[:-1], meshes[1:]):
+        for a, b in zip(meshes[:-1], meshes[1:], strict=False):
             p = b[0]
             top = away_from_walls(p, tank, 2 * spacing) & (p[:, 2] > 0.5 * POOL_DEPTH)
             d = distances(p[top], a)
@@ -395,7 +395,7 @@ def run_motion(report, *settings):
                                                           for x in frames) or peer),
                        ("splashsurf_at_the_scenes_volume",
                         lambda: [splashsurf_at_the_scenes_volume(x, spacing, tank, m)
-                                 for x, m in zip(frames, peer)]),
+                                 for x, m in zip(frames, peer, strict=False)]),
                        ("scene_across_5_frames",
                         lambda: across_frames(scene_meshes, frames, spacing, tank)),
                        ("scene_feature_smoothing_10",
@@ -437,7 +437,7 @@ def run_motion(report, *settings):
                      "beyond_uniform_offset_mean": float(np.mean(shape)),
                      "flicker_per_frame": flicker, "flicker_mean": float(np.mean(flicker)),
                      "flicker_median": float(np.median(flicker))}
-        comps, cavs, hls = zip(*(holes(*m) for m in meshes))
+        comps, cavs, hls = zip(*(holes(*m) for m in meshes), strict=False)
         topology[name] = {"components": list(map(int, comps)), "cavities": list(map(int, cavs)),
                           "holes": list(map(int, hls))}
         report(f"  in motion ({name}): unexplained RMS {np.mean(rms):.4f} spacings per frame "

@@ -263,8 +263,8 @@ def worker(tool: str, case: str, repeats: int, mesh_path: str) -> dict:
 def measure_mesh(row: dict, mesh_path: str) -> None:
     """Mesh measures (and, for blobflow, the smoothing stage) in the parent process."""
     from filters.surface.mesh import mesh_stats
-    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
     from pipeline.surface import Smooth
+    from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
 
     data = np.load(mesh_path)
     verts, tris = data["vertices"].astype(np.float64), data["triangles"]

@@ -131,9 +131,8 @@ def _sha(*chunks) -> str:
 
 
 def _array_digest(name, vtk_array) -> list:
-    from vtkmodules.util import numpy_support
-
     import numpy as np
+    from vtkmodules.util import numpy_support
 
     values = np.ascontiguousarray(numpy_support.vtk_to_numpy(vtk_array))
     return [name, str(values.dtype), list(values.shape), _sha(values.tobytes())]
@@ -152,8 +151,11 @@ def _attributes(data) -> list:
 
 def decoded_digest(path: Path) -> dict:
     """Digest of a VTK XML frame's data: points, cells, point, cell and field arrays."""
-    from vtkmodules.vtkIOXML import (vtkXMLImageDataReader, vtkXMLPolyDataReader,
-                                     vtkXMLUnstructuredGridReader)
+    from vtkmodules.vtkIOXML import (
+        vtkXMLImageDataReader,
+        vtkXMLPolyDataReader,
+        vtkXMLUnstructuredGridReader,
+    )
 
     reader = {".vtp": vtkXMLPolyDataReader, ".vtu": vtkXMLUnstructuredGridReader,
               ".vti": vtkXMLImageDataReader}[path.suffix]()

@@ -132,7 +132,7 @@ def minimize_with_contact(dx: np.ndarray, q_value: Callable[[np.ndarray], float]
     energy = q_value(dx) + contact.value(x0, dx)
     halvings = 0
     it = 0
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 (the count is reported after the loop)
         g = q_gradient(dx)
         contact.derivatives(x0, dx, g, blocks)
         g[pinned] = 0.0

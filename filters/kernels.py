@@ -118,12 +118,12 @@ def cubic_w(r, h):
 def cubic_dw(r, h):
     """Radial derivative ``dW/dr`` (1/m^4) of :func:`cubic_w`."""
     q = r / h
-    l = 48.0 / (_PI * h * h * h * h)
+    c = 48.0 / (_PI * h * h * h * h)
     if q <= 0.5:
-        return l * q * (3.0 * q - 2.0)
+        return c * q * (3.0 * q - 2.0)
     if q < 1.0:
         t = 1.0 - q
-        return -l * t * t
+        return -c * t * t
     return 0.0
 
 
@@ -254,7 +254,8 @@ def cohesion_c(r, h):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def adhesion_a(r, h):
-    """Adhesion profile ``A(r)`` of Akinci et al. (2013): ``0.007 / h^3.25 (-4 r^2/h + 6 r - 2 h)^(1/4)``
+    """Adhesion profile ``A(r)`` of Akinci et al. (2013):
+    ``0.007 / h^3.25 (-4 r^2/h + 6 r - 2 h)^(1/4)``
     for ``h/2 < r <= h``, zero elsewhere."""
     if r >= h or 2.0 * r <= h:
         return 0.0
@@ -525,7 +526,8 @@ def _check_positive(name, value, high=math.inf):
     return value
 
 
-def lone_particle_radius(kernel: str = "sph", radius: float = 1.0, *, support_r: float | None = None,
+def lone_particle_radius(kernel: str = "sph", radius: float = 1.0, *,
+                         support_r: float | None = None,
                          iso: float | None = None, blobbiness: float = 4.0) -> float:
     """Radius (m) of the iso-surface of one isolated particle, from the profile alone.
 

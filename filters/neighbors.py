@@ -400,7 +400,7 @@ class NeighborSearch:
         self.backend = None
 
     # -- building -----------------------------------------------------------------------------
-    def build(self, points: np.ndarray) -> "NeighborSearch":
+    def build(self, points: np.ndarray) -> NeighborSearch:
         """Index ``points`` ((N, 3) float64, m) for queries; returns ``self``."""
         try:
             points = np.ascontiguousarray(points, dtype=np.float64)

@@ -18,8 +18,8 @@ into VTK datasets.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 
@@ -125,7 +125,7 @@ class State:
         """Number of particles ``N``."""
         return self.positions.shape[0]
 
-    def copy(self) -> "State":
+    def copy(self) -> State:
         """Return a deep copy (arrays are copied)."""
         return State(self.positions, self.velocities, self.time, self.step, self.extra)
 
@@ -149,7 +149,7 @@ class State:
         return arrays
 
     @classmethod
-    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> "State":
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> State:
         """Rebuild a state written by :meth:`to_arrays`."""
         missing = {"time", "step", "positions", "velocities"} - set(arrays)
         if missing:
@@ -197,7 +197,8 @@ class OutputSpec:
     def __post_init__(self):
         if self.topology not in ("vertices", "lines", "polys", "cells"):
             raise ValueError(
-                f"topology must be one of 'vertices', 'lines', 'polys', 'cells', got {self.topology!r}"
+                "topology must be one of 'vertices', 'lines', 'polys', 'cells', "
+                f"got {self.topology!r}"
             )
 
     @property

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from filters.elastic.contact import Colliders
-from filters.geometry import Plane, Sphere
 from filters.elastic.mass_spring import ClothSimulation
+from filters.geometry import Plane, Sphere
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from filters.elastic.contact import Colliders
-from filters.geometry import Sphere
 from filters.elastic.mass_spring import HairSimulation
+from filters.geometry import Sphere
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

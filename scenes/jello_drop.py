@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from filters.elastic.contact import Colliders
-from filters.geometry import Plane
 from filters.elastic.mass_spring import JelloSimulation
 from filters.elastic.topology import icosphere
+from filters.geometry import Plane
 from filters.validation import check_range
 from pipeline import Flow, SimulationSource
 from pipeline.embedding import read_closed_mesh

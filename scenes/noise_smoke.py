@@ -14,8 +14,8 @@ import math
 
 from filters.advect import BoxEmitter, NoiseAdvection, check_integrator
 from filters.fields import CurlNoise
-from filters.memory import check_memory
 from filters.geometry import Plane, Sphere
+from filters.memory import check_memory
 from filters.validation import check_int, check_range
 from pipeline import Flow, SimulationSource
 from pipeline.scene import Scene

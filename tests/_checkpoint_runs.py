@@ -22,10 +22,10 @@ def build(kind, simulation=None):
     """The flow named ``kind`` (``ballistic``: of ``simulation`` when given) and its
     ``checkpoint_every``."""
     if kind == "ballistic":
+        from _helpers import ballistic
         from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
         from pipeline import Flow, SimulationSource
-        from _helpers import ballistic
 
         flow = Flow(SimulationSource(simulation or ballistic(), fps=20, frames=11))
         flow.add("elevation", vtkElevationFilter())

@@ -7,8 +7,11 @@ import re
 import struct
 from pathlib import Path
 
-from vtkmodules.vtkIOXML import (vtkXMLImageDataWriter, vtkXMLPolyDataWriter,
-                                 vtkXMLUnstructuredGridWriter)
+from vtkmodules.vtkIOXML import (
+    vtkXMLImageDataWriter,
+    vtkXMLPolyDataWriter,
+    vtkXMLUnstructuredGridWriter,
+)
 
 from pipeline.io.series import read_frame
 

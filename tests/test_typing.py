@@ -13,11 +13,11 @@ import importlib
 import importlib.util
 import inspect
 import pkgutil
-import tomllib
 import typing
 from pathlib import Path
 
 import pytest
+import tomllib
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("pipeline", "filters")

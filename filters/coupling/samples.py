@@ -70,7 +70,8 @@ def mesh_distances(vertices: ArrayLike, faces: ArrayLike, points: ArrayLike,
     return d, n
 
 
-def solid_layers(vertices: ArrayLike, faces: ArrayLike, spacing: float, *, support_factor: float = 2.0,
+def solid_layers(vertices: ArrayLike, faces: ArrayLike, spacing: float, *,
+                 support_factor: float = 2.0,
                  kernel: str = "cubic", layers: int | None = None,
                  origin: ArrayLike | None = None) -> BoundaryParticles:
     """Boundary particles filling the outer layers of the inside of a closed triangle mesh.

@@ -259,7 +259,7 @@ class Colliders:
         return e, mu
 
     def add(self, shape: Shape, *, restitution: float | None = None,
-            friction: float | None = None) -> "Colliders":
+            friction: float | None = None) -> Colliders:
         """Add an obstacle: a :class:`filters.geometry.Plane` (the half-space behind it), a
         :class:`~filters.geometry.Sphere` or :class:`~filters.geometry.Box` (solid), or a
         container ``~Sphere(...)`` / ``~Box(...)`` (particles stay inside).

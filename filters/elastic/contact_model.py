@@ -53,11 +53,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .threads import serial_below
 from ..validation import check_range
 from .contact import Colliders
-from .contact_kernels import (barrier, barrier_energies, contact_clearance, contact_terms,
-                              feasible_steps, lag_normal_forces, scatter_to_particles)
+from .contact_kernels import (
+    barrier,
+    barrier_energies,
+    contact_clearance,
+    contact_terms,
+    feasible_steps,
+    lag_normal_forces,
+    scatter_to_particles,
+)
+from .threads import serial_below
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray

@@ -53,7 +53,7 @@ class EnergyAccount:
     def field_data(self) -> dict:
         """``{name: (1,) float64}`` under the names of :data:`ENERGY_FIELDS`."""
         values = (self.kinetic, self.gravitational, self.elastic, self.contact, self.total)
-        return {name: np.array([value]) for name, value in zip(ENERGY_FIELDS, values)}
+        return {name: np.array([value]) for name, value in zip(ENERGY_FIELDS, values, strict=False)}
 
 
 def energy_account(system: ImplicitSystem, positions: np.ndarray, velocities: np.ndarray,

@@ -22,16 +22,24 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-
 import numpy as np
 
-from .threads import serial_below
 from ..linalg import ImplicitSystem
 from ..validation import check_finite_vector, check_points, check_range
-from .fem_kernels import (CHUNK, assemble_stiffness, color_chunks, csr_matvec, element_energies,
-                          element_forces, element_hessians, finish_system, gather_nodes,
-                          serial_sum)
+from .fem_kernels import (
+    CHUNK,
+    assemble_stiffness,
+    color_chunks,
+    csr_matvec,
+    element_energies,
+    element_forces,
+    element_hessians,
+    finish_system,
+    gather_nodes,
+    serial_sum,
+)
 from .materials import MATERIALS, lame_parameters, material_parameters
+from .threads import serial_below
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray

@@ -106,7 +106,7 @@ def element_stiffness(material, mu, lam, f, g, w, definite, out, scratch, tf, gv
         for i in range(3):
             gv[k, i] = v[0, i] * g[k, 0] + v[1, i] * g[k, 1] + v[2, i] * g[k, 2]
     for k in range(4):
-        for l in range(k, 4):
+        for l in range(k, 4):  # noqa: E741 (node l of the block k, l, as in the docstring)
             for i in range(3):
                 for j in range(3):
                     kh[i, j] = a[i, j] * gv[k, i] * gv[l, j]
@@ -265,7 +265,7 @@ def assemble_stiffness(x, tets, grads, vols, material, mu, lam, definite, color_
                                   scratch, tf, gv, kh)
                 for k in range(4):
                     stride = row_stride[t, k]
-                    for l in range(4):
+                    for l in range(4):  # noqa: E741 (node l of the block k, l)
                         base = block_offset[t, 4 * k + l]
                         for r in range(3):
                             for q in range(3):

@@ -18,16 +18,24 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .contact import Colliders
-from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, ContactModel
-from .energy import EnergyAccount, energy_account
 from ..integrators import check_scheme, integrate
 from ..linalg import LinearSolver
 from ..simulation import Frame, OutputSpec, Simulation, SimulationUnstableError, State
-from .springs import DAMPING_MODES, SpringSystem
-from .topology import (BEND, SHEAR, STRETCH, SpringTopology, cloth_from_mesh, cloth_grid,
-                       hair_strands, jello_from_mesh)
 from ..validation import check_choice, check_finite_vector, check_int, check_range
+from .contact import Colliders
+from .contact_model import DEFAULT_SLIP_VELOCITY, DEFAULT_STIFFNESS_RATIO, ContactModel
+from .energy import EnergyAccount, energy_account
+from .springs import DAMPING_MODES, SpringSystem
+from .topology import (
+    BEND,
+    SHEAR,
+    STRETCH,
+    SpringTopology,
+    cloth_from_mesh,
+    cloth_grid,
+    hair_strands,
+    jello_from_mesh,
+)
 
 if TYPE_CHECKING:
     from typing import Any
@@ -340,7 +348,8 @@ class HairSimulation(MassSpringSimulation):
 
 
 class ClothSimulation(MassSpringSimulation):
-    """Cloth from a triangle mesh (see :func:`filters.elastic.topology.cloth_from_mesh`); output triangles.
+    """Cloth from a triangle mesh (see :func:`filters.elastic.topology.cloth_from_mesh`); output
+    triangles.
 
     Parameters
     ----------

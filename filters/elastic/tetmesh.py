@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-
 from numba import njit
 
 from ..simplices import CORNER_OFFSETS, KUHN_TETS, kuhn_locate

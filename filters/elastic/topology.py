@@ -352,7 +352,8 @@ def cloth_from_mesh(points: ArrayLike, triangles: ArrayLike, *,
     bend = bend[bend[:, 0] != bend[:, 1]]
     bend = _unique_pairs(bend) if len(bend) else bend.reshape(0, 2)
     springs = np.concatenate([stretch, bend]).astype(np.int64)
-    kinds = np.concatenate([np.full(len(stretch), STRETCH), np.full(len(bend), BEND)]).astype(np.int8)
+    kinds = np.concatenate([np.full(len(stretch), STRETCH),
+                            np.full(len(bend), BEND)]).astype(np.int8)
     area = 0.5 * np.linalg.norm(np.cross(pts[tris[:, 1]] - pts[tris[:, 0]],
                                          pts[tris[:, 2]] - pts[tris[:, 0]]), axis=1)
     masses = np.zeros(pts.shape[0])
@@ -417,8 +418,10 @@ def jello_from_mesh(points: ArrayLike, triangles: ArrayLike, *, spacing: float,
             (pairs_edge if dist == 1 else pairs_diag).append((a, b))
     pe = np.array(pairs_edge)
     pdg = np.array(pairs_diag)
-    edge_springs = _unique_pairs(np.stack([local[:, pe[:, 0]].ravel(), local[:, pe[:, 1]].ravel()], 1))
-    diag_springs = _unique_pairs(np.stack([local[:, pdg[:, 0]].ravel(), local[:, pdg[:, 1]].ravel()], 1))
+    edge_springs = _unique_pairs(np.stack([local[:, pe[:, 0]].ravel(),
+                                           local[:, pe[:, 1]].ravel()], 1))
+    diag_springs = _unique_pairs(np.stack([local[:, pdg[:, 0]].ravel(),
+                                           local[:, pdg[:, 1]].ravel()], 1))
     springs = np.concatenate([edge_springs, diag_springs]).astype(np.int64)
     kinds = np.concatenate([np.full(len(edge_springs), STRETCH),
                             np.full(len(diag_springs), SHEAR)]).astype(np.int8)
@@ -474,7 +477,7 @@ def icosphere(radius: float = 1.0, subdivisions: int = 2,
         cache = {}
         new_faces = []
 
-        def mid(a, b):
+        def mid(a, b, cache=cache):
             key = (min(a, b), max(a, b))
             if key not in cache:
                 m = pts[a] + pts[b]

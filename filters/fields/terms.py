@@ -34,8 +34,18 @@ from ..noise.curl import curl_jacobians, curl_potentials, curl_velocities
 from ..noise.fractal import MAX_OCTAVES, check_top_frequency
 from ..noise.perlin import kernel_tables
 from ..validation import check_finite, check_finite_vector, check_int, check_points, check_range
-from .packed import (KIND_CURL, KIND_DRAG, KIND_NOISE_WIND, KIND_ROTATION, KIND_UNIFORM,
-                     KIND_VORTEX, N_PARAMS, PackedField, evaluate_packed, jacobian_packed)
+from .packed import (
+    KIND_CURL,
+    KIND_DRAG,
+    KIND_NOISE_WIND,
+    KIND_ROTATION,
+    KIND_UNIFORM,
+    KIND_VORTEX,
+    N_PARAMS,
+    PackedField,
+    evaluate_packed,
+    jacobian_packed,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Iterator

@@ -9,8 +9,14 @@ from .cg import pcg
 from .direct import direct_solve
 from .operator import BlockOperator
 from .protocol import ImplicitSystem
-from .solver import (DEFAULT_OMEGA, PRECONDITIONERS, SOLVERS, LinearSolver, pcg_operator,
-                     solve_linear)
+from .solver import (
+                     DEFAULT_OMEGA,
+                     PRECONDITIONERS,
+                     SOLVERS,
+                     LinearSolver,
+                     pcg_operator,
+                     solve_linear,
+)
 
 __all__ = ["ImplicitSystem", "BlockOperator", "LinearSolver", "SOLVERS", "PRECONDITIONERS",
            "DEFAULT_OMEGA", "pcg", "pcg_operator", "solve_linear", "direct_solve"]

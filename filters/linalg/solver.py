@@ -63,7 +63,8 @@ def pcg_operator(operator: BlockOperator, b: np.ndarray, x0: ArrayLike | None = 
     preconditioner : {"sgs", "block_jacobi", "ssor"}
         Block symmetric Gauss-Seidel (two sweeps over the springs per iteration, about half the
         iterations of block Jacobi on cloth), per-particle 3x3 block Jacobi, or block symmetric
-        successive over-relaxation with Eisenstat's trick (:func:`filters.linalg.ssor.pcg_ssor`: the two sweeps
+        successive over-relaxation with Eisenstat's trick (:func:`filters.linalg.ssor.pcg_ssor`: the
+        two sweeps
         *replace* the product with ``H``, so an iteration costs two passes over the springs;
         with ``omega`` near its optimum the preconditioned condition number is
         ``O(sqrt(kappa))`` on model problems (Axelsson 1994, "Iterative solution methods"),

@@ -23,8 +23,13 @@ import numpy as np
 from numba import njit, prange
 
 from ..elastic.threads import serial_below
-from .quaternion import (quat_axis_rotation, quat_conjugate, quat_multiply, quat_normalize,
-                         quat_to_matrix)
+from .quaternion import (
+    quat_axis_rotation,
+    quat_conjugate,
+    quat_multiply,
+    quat_normalize,
+    quat_to_matrix,
+)
 
 __all__ = ["body_rotations", "world_inverse_inertia", "kick", "drift", "points_to_world",
            "point_force_sums", "FORCE_CHUNKS", "PARALLEL_MIN_POINTS"]

@@ -36,7 +36,8 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
 __all__ = ["SDF_CONVEX", "SDF_GRID", "face_planes", "is_convex", "grid_sdf", "pack_sdfs",
-           "body_distance", "body_distances", "triangle_distance", "winding_number", "convex_distance",
+           "body_distance", "body_distances", "triangle_distance", "winding_number",
+           "convex_distance",
            "grid_distance"]
 
 #: Kinds of body distance functions.

@@ -34,8 +34,15 @@ from ..simulation import Frame, OutputSpec, Simulation, SimulationUnstableError,
 from ..validation import check_finite_vector, check_int, check_points, check_range
 from .body import RigidBody
 from .contact import broad_phase, find_contacts, pack_colliders
-from .dynamics import (PARALLEL_MIN_POINTS, body_rotations, drift, kick, point_force_sums,
-                       points_to_world, world_inverse_inertia)
+from .dynamics import (
+    PARALLEL_MIN_POINTS,
+    body_rotations,
+    drift,
+    kick,
+    point_force_sums,
+    points_to_world,
+    world_inverse_inertia,
+)
 from .impulses import solve_positions, solve_velocities
 from .quaternion import check_quaternions
 from .sdf import pack_sdfs

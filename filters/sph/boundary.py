@@ -21,7 +21,8 @@ particle adds ``rho0 * volumes[b] * W`` to a density.  Each particle also carrie
 the surface it samples (the liquid groups boundary particles by it to keep fluid particles off
 every wall of a corner, :mod:`filters.sph.dfsph`), a velocity (moving walls and bodies, see
 :meth:`filters.sph.SPHLiquid.move_boundary`) and a friction factor (0: a free-slip wall).
-:func:`boundary_volumes` gives the volumes of any sampled surface, e.g. of a body that deforms.  :func:`lattice_volume` is the volume that
+:func:`boundary_volumes` gives the volumes of any sampled surface, e.g. of a body that deforms.
+:func:`lattice_volume` is the volume that
 makes a perfect fluid lattice of the given spacing have rest density.
 """
 

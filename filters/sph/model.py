@@ -142,5 +142,6 @@ def as_field(external: object | None) -> Callable[[np.ndarray, np.ndarray, float
         return external.acceleration
     if callable(external):
         return external
-    raise TypeError("external must be None, a callable field(positions, velocities, time) -> (N, 3) "
+    raise TypeError("external must be None, a callable field(positions, velocities, time) "
+                    "-> (N, 3) "
                     f"or an object with such an acceleration method; got {type(external).__name__}")

@@ -17,7 +17,8 @@ __all__ = ["neighbourhood_pass", "boundary_reach_mask", "cell_range", "wall_of",
 
 #: Wall clusters kept per fluid particle: the whole boundary, then up to three walls by normal.
 WALL_CLUSTERS = 4
-#: Absolute cosine of the angle within which two boundary normals belong to the same wall (45 degrees).
+#: Absolute cosine of the angle within which two boundary normals belong to the same wall (45
+#: degrees).
 SAME_WALL_COS = 0.7
 
 

@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING
 
 import numba
 
+from ..validation import check_choice, check_finite_vector, check_int, check_range
 from .boundary import BoundaryParticles
 from .model import default_support_factor
-from ..validation import check_choice, check_finite_vector, check_int, check_range
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -83,5 +83,9 @@ def check_liquid_parameters(*, spacing: float, boundary: BoundaryParticles | Non
     if threads is not None:
         threads = check_int("threads", threads, 1, numba.config.NUMBA_NUM_THREADS)
     if boundary is not None and not isinstance(boundary, BoundaryParticles):
-        raise TypeError(f"boundary must be BoundaryParticles or None, got {type(boundary).__name__}")
-    return (spacing, rest_density, support_factor, speed_of_sound, gamma, viscosity, boundary_viscosity, xsph, surface_tension, gravity, cfl, max_dt, density_error_limit, skin, threads, max_density_error, max_divergence_error, max_iterations, kinematic_viscosity)
+        raise TypeError("boundary must be BoundaryParticles or None, "
+                        f"got {type(boundary).__name__}")
+    return (spacing, rest_density, support_factor, speed_of_sound, gamma, viscosity,
+            boundary_viscosity, xsph, surface_tension, gravity, cfl, max_dt, density_error_limit,
+            skin, threads, max_density_error, max_divergence_error, max_iterations,
+            kinematic_viscosity)

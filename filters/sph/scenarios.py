@@ -180,7 +180,8 @@ def drop_liquid(*, tank_length: float = 0.4, tank_width: float = 0.4, tank_heigh
     if radius < spacing:
         raise ValueError(f"drop_radius must be >= spacing ({spacing:g} m), got {radius:g}")
     if 2.0 * radius > min(length, width):
-        raise ValueError(f"drop_radius {radius:g} m does not fit in the tank ({length:g} x {width:g} m)")
+        raise ValueError(f"drop_radius {radius:g} m does not fit in the tank "
+                         f"({length:g} x {width:g} m)")
     if zc + radius > height:
         raise ValueError(f"drop_height + drop_radius must be <= tank_height {height:g} m")
     if zc - radius < pool + spacing:

@@ -109,7 +109,8 @@ class ImplicitViscosity:
     """Workspace and conjugate-gradient loop of the implicit viscosity solve.
 
     Rest volumes make ``I - dt L`` symmetric positive definite; the boundary acts as a no-slip
-    wall with its own viscosity, moving with its particles' velocities.  The preconditioner is block Jacobi on approximate
+    wall with its own viscosity, moving with its particles' velocities.  The preconditioner is block
+    Jacobi on approximate
     diagonal blocks (:func:`_visc_precond`).
     """
 

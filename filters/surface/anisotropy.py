@@ -68,15 +68,21 @@ from ..binning import MAX_CELLS, cell_window, sort_into_cells
 from ..kernels import spline_row
 from ..neighbors import NeighborSearch
 from ..validation import check_choice, check_int, check_points, check_radii, check_range
-from .covariance import (SMOOTHING_RAMP, anisotropy_on_lists, count_gate, curvature_gate,
-                         kernel_frame)
+from .covariance import (
+    SMOOTHING_RAMP,
+    anisotropy_on_lists,
+    count_gate,
+    curvature_gate,
+    kernel_frame,
+)
 
 if TYPE_CHECKING:
     from typing import Any
 
     from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["anisotropic_kernels", "kernel_matrices", "KernelSet", "kernel_axes", "DEFAULTS", "MAX_AXIS_H",
+__all__ = ["anisotropic_kernels", "kernel_matrices", "KernelSet", "kernel_axes", "DEFAULTS",
+           "MAX_AXIS_H",
            "check_anisotropy"]
 
 #: Defaults of :func:`anisotropic_kernels` (see its docstring); lengths are multiples of the
@@ -99,7 +105,8 @@ MAX_AXIS_H = 1.26
 def _anisotropy_cells(sx, order, start, origin, cell, dims, reach, rn, hs, band, mass, uniform,
                       kr, neps, lam, amax, tau, ntargets, centres, G, volumes, dets, strength,
                       anisotropy):
-    """The same on points sorted into the cells of a uniform grid (:func:`filters.binning.sort_into_cells`) as wide
+    """The same on points sorted into the cells of a uniform grid
+    (:func:`filters.binning.sort_into_cells`) as wide
     as the search radius: every non-empty cell gathers the points of its 27 neighbour
     cells once (float32, relative to the cell's corner) and each of its points sums over them
     in branch-free loops the compiler vectorises (weights, SPH density and the first and second

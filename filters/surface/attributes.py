@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit, prange
 
-from ..kernels import ZHU_BRIDSON, splat_kernel_id, splat_profile
 from ..binning import lookup
+from ..kernels import ZHU_BRIDSON, splat_kernel_id, splat_profile
 from ..validation import check_points
 from .blocks import bin_by_block
 from .grid import BLOCK_LIMIT, check_block_range, pack_key
@@ -99,8 +99,8 @@ def _shepard(X, P, H, V, start, table, ranks, reach, bsz, kernel, blob_a, blob_e
                             best = q
                         h2 = H[q] * H[q]
                         if d2 < h2:
-                            w = splat_profile(kernel if kernel != ZHU_BRIDSON else 1, np.float32(d2 / h2),
-                                      blob_a, blob_e)
+                            w = splat_profile(kernel if kernel != ZHU_BRIDSON else 1,
+                                              np.float32(d2 / h2), blob_a, blob_e)
                             wsum += w
                             for c in range(k):
                                 out[t, c] += w * V[q, c]
@@ -170,8 +170,8 @@ def interpolate_attributes(points: np.ndarray, positions: np.ndarray, radius: Ar
     with np.errstate(over="ignore", invalid="ignore"):
         home = np.floor(X / bsz)
     near = ((home >= -BLOCK_LIMIT + reach + 1) & (home <= BLOCK_LIMIT - reach - 2)).all(axis=1)
-    args = (P, Hs, V, start, table, ranks, reach, bsz, splat_kernel_id(kernel), np.float32(blobbiness),
-            np.float32(math.exp(-blobbiness)))
+    args = (P, Hs, V, start, table, ranks, reach, bsz, splat_kernel_id(kernel),
+            np.float32(blobbiness), np.float32(math.exp(-blobbiness)))
     if near.all():
         out = _shepard(X, *args)
     else:

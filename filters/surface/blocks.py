@@ -27,8 +27,15 @@ import numpy as np
 from numba import njit, prange
 
 from ..binning import counting_sort, index_keys, lookup
-from .grid import (SparseGrid, block_keys, check_budget, corner_index, pack_key, unpack_key,
-                   unpack_keys)
+from .grid import (
+    SparseGrid,
+    block_keys,
+    check_budget,
+    corner_index,
+    pack_key,
+    unpack_key,
+    unpack_keys,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Callable

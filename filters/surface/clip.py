@@ -329,13 +329,14 @@ def refill_runs(triangles: np.ndarray, runs: dict) -> NDArray[np.int64]:
         x = t[(e + 2) % 3]
         alive[f] = False
         chain = [u, *map(int, between), w]
-        for a, b in zip(chain[:-1], chain[1:]):
+        for a, b in zip(chain[:-1], chain[1:], strict=False):
             tris.append((a, b, x))
             alive.append(True)
             g = len(tris) - 1
             for edge in ((a, b), (b, x), (x, a)):
                 where[edge] = g
-    return np.asarray([t for t, ok in zip(tris, alive) if ok], np.int64).reshape(-1, 3)
+    kept = [t for t, ok in zip(tris, alive, strict=False) if ok]
+    return np.asarray(kept, np.int64).reshape(-1, 3)
 
 
 def wall_constraints(points: np.ndarray, triangles: np.ndarray, lower: np.ndarray,

@@ -4,7 +4,8 @@ A particle field from :mod:`filters.surface.splat` (negative inside) combines wi
 (signed distance, negative inside the solid) by Ricci's (1973) operators: ``"union"`` (min),
 ``"intersection"`` (max), ``"difference"`` (``max(field, -shape)``): e.g. the liquid clipped by
 the inside of its tank (``operation="intersection"`` with the tank's inner
-:class:`filters.geometry.Box`) or a liquid merged with a solid blob (``"union"``). The shape's distance is scaled into the units of
+:class:`filters.geometry.Box`) or a liquid merged with a solid blob (``"union"``). The shape's
+distance is scaled into the units of
 the field (about the slope of an SPH field across a surface) before the min / max, so that both
 slopes are comparable where the surfaces meet; the zero set, hence the surface, does not depend
 on that scale.
@@ -16,16 +17,16 @@ import math
 
 import numpy as np
 
+from ..geometry import Box, Shape
+from ..validation import check_choice, check_range
 from .grid import (
+    DEFAULT_MAX_BYTES,
     DenseField,
     SparseGrid,
     check_budget,
     pack_keys,
     unpack_keys,
-    DEFAULT_MAX_BYTES,
 )
-from ..geometry import Box, Shape
-from ..validation import check_choice, check_range
 
 __all__ = ["combine_dense", "combine_sparse", "OPERATIONS"]
 

@@ -5,7 +5,8 @@ Particle ``j`` with kernel centre ``c_j`` (m), kernel matrix ``G_j`` (symmetric,
 
     ``a_j K(|G_j (x - c_j)|^2)``
 
-to the field, with ``K`` one of the unit-support kernels of :mod:`filters.surface.splat` as a function
+to the field, with ``K`` one of the unit-support kernels of :mod:`filters.surface.splat` as a
+function
 of ``q^2`` (peak 1): ``sph`` (Monaghan's cubic spline), ``metaball`` (Wyvill et al. 1986) or
 ``blobby`` (Blinn 1982). This is Yu & Turk's (2013) anisotropic kernel ``W(r, G) = sigma det(G)
 P(|G r|)``: the ``det(G)`` and the normalisation ``sigma`` live in ``a_j``. For the ``sph``
@@ -15,11 +16,13 @@ the ellipsoidal kernels themselves, :func:`filters.surface.volumes.anisotropic_v
 the SPH colour field ``sum_j V_j W_j(x)``, which is about 1 inside the liquid, with the
 amplitudes of stretched kernels raised by :func:`filters.surface.volumes.stretched_gain`; for
 the other kernels
-``a_j = det(G_j) h_j^3`` (1 for the volume-keeping matrices of :mod:`filters.surface.anisotropy`, more
+``a_j = det(G_j) h_j^3`` (1 for the volume-keeping matrices of :mod:`filters.surface.anisotropy`,
+more
 where their long axis is capped), which keeps each particle's integral that of the isotropic
 kernel.
 
-The output is the same as :func:`filters.surface.splat.splat_sparse` / :func:`filters.surface.splat.splat_dense`:
+The output is the same as :func:`filters.surface.splat.splat_sparse` /
+:func:`filters.surface.splat.splat_dense`:
 an implicit value ``g = iso - f`` (negative inside) on a :class:`filters.surface.grid.SparseGrid`
 or :class:`filters.surface.grid.DenseField`, so :func:`pipeline.surface.contour_sparse` /
 :func:`pipeline.surface.contour_dense` and ``MarchingCubes`` contour it unchanged.
@@ -35,7 +38,8 @@ parabola's vertex clamped to the row, written always and counted only if kept: n
 each voxel then sums a branch-free, vectorisable loop -- the same cost per contribution as
 the isotropic splat (about 19 contributions per voxel row for both on a 100k block).
 
-Determinism and sparsity follow :mod:`filters.surface.splat`: particles binned by block with a serial
+Determinism and sparsity follow :mod:`filters.surface.splat`: particles binned by block with a
+serial
 counting sort, every voxel written by one task summing in a fixed order (bitwise identical for
 any thread count), only blocks that particles can reach considered; outside blocks rejected by
 an upper bound of the field (``K <= 1`` and ``|G r|^2 >= |r|^2 / S^2`` with ``S`` the longest
@@ -55,8 +59,15 @@ from ..binning import EMPTY_KEY, insert_key, lookup
 from ..kernels import splat_kernel_id, splat_row_profile
 from ..validation import check_choice, check_int, check_points, check_range
 from .blocks import bin_by_block, blocks_meeting_box, classify_and_evaluate, grown_block_box
-from .grid import (DEFAULT_MAX_BYTES, DenseField, SparseGrid, check_block_range, check_budget,
-                   pack_key, unpack_key)
+from .grid import (
+    DEFAULT_MAX_BYTES,
+    DenseField,
+    SparseGrid,
+    check_block_range,
+    check_budget,
+    pack_key,
+    unpack_key,
+)
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -549,7 +560,8 @@ def splat_ellipsoids_sparse(centres: np.ndarray, G: np.ndarray, amplitude: Array
     Returns
     -------
     SparseGrid
-        Implicit values ``iso - f`` (negative inside), as :func:`filters.surface.splat.splat_sparse`.
+        Implicit values ``iso - f`` (negative inside), as
+        :func:`filters.surface.splat.splat_sparse`.
     """
     return ellipsoid_grid(centres, G, amplitude, cell_size, kernel=kernel, iso=iso,
                           block_size=block_size, blobbiness=blobbiness, max_bytes=max_bytes,

@@ -590,12 +590,8 @@ def _fill_box(values, lo, bsz, table, ranks, data, inside, outside):
 @njit(parallel=True, cache=True, fastmath=True)
 def _fill_bricks(out, cross, bricks, group, bsz, table, ranks, data, inside, outside):
     n = out.shape[1]
-    span = group * bsz
     nb = (n + bsz - 1) // bsz  # blocks a brick's voxels touch per axis (group + 1)
     for b in prange(bricks.shape[0]):
-        ox = bricks[b, 0] * span
-        oy = bricks[b, 1] * span
-        oz = bricks[b, 2] * span
         # the brick's blocks looked up once (not once per run of voxels)
         rank = np.empty((nb, nb, nb), np.int64)
         for c in range(nb):

@@ -34,7 +34,8 @@ def _merge(bits):
     first = np.empty(n, np.int64)
     count = 0
     for p in range(n):
-        key = ((bits[p, 0] * 73856093) ^ (bits[p, 1] * 19349663) ^ (bits[p, 2] * 83492791)) & 0x3FFFFFFFFFFFFFFF
+        key = ((bits[p, 0] * 73856093) ^ (bits[p, 1] * 19349663)
+               ^ (bits[p, 2] * 83492791)) & 0x3FFFFFFFFFFFFFFF
         i = probe(table, key)
         # resolve hash collisions by comparing the coordinates themselves
         mask = capacity - 1
@@ -211,7 +212,8 @@ def mesh_stats(points: np.ndarray, triangles: np.ndarray) -> MeshStats:
     nv = pts.shape[0]
     directed = np.stack([tris, np.roll(tris, -1, axis=1)], axis=-1).reshape(-1, 2)
     dkeys = directed[:, 0] * nv + directed[:, 1]
-    ukeys = np.minimum(directed[:, 0], directed[:, 1]) * nv + np.maximum(directed[:, 0], directed[:, 1])
+    ukeys = (np.minimum(directed[:, 0], directed[:, 1]) * nv
+             + np.maximum(directed[:, 0], directed[:, 1]))
     _, ucount = np.unique(ukeys, return_counts=True)
     closed = bool((ucount == 2).all())
     oriented = np.unique(dkeys).size == dkeys.size

@@ -131,7 +131,8 @@ def _sph_amplitudes(P, H, M, unique, start, table, ranks, reach, bsz, hmax, unif
                     d2 = np.float64(ex * ex + ey * ey + ez * ez)
                     hh = 0.5 * (H[p] + ch[k])
                     if d2 < hh * hh:
-                        w = splat_profile(2, np.float32(d2 / (hh * hh)), np.float32(0.0), np.float32(0.0))
+                        w = splat_profile(2, np.float32(d2 / (hh * hh)), np.float32(0.0),
+                                          np.float32(0.0))
                         rho += cm[k] * w * 8.0 / (math.pi * hh * hh * hh)
                 A[p] = M[p] / rho * 8.0 / (math.pi * H[p] ** 3)
     return A

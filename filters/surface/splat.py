@@ -26,10 +26,16 @@ from ..kernels import SPLAT_DEFAULTS, SPLAT_KERNELS
 from ..validation import check_bool, check_choice, check_int, check_points, check_radii, check_range
 from .anisotropy import check_anisotropy, kernel_matrices
 from .covariance import SMOOTHING_RAMP
-from .ellipsoids import ANISOTROPIC_ISO, ANISOTROPIC_KERNELS, ellipsoid_grid, splat_ellipsoids_dense
 from .crowding import check_crowding
-from .grid import (DEFAULT_MAX_BYTES, DenseField, GridTooLargeError, SparseGrid, check_block_range,
-                   check_budget)
+from .ellipsoids import ANISOTROPIC_ISO, ANISOTROPIC_KERNELS, ellipsoid_grid, splat_ellipsoids_dense
+from .grid import (
+    DEFAULT_MAX_BYTES,
+    DenseField,
+    GridTooLargeError,
+    SparseGrid,
+    check_block_range,
+    check_budget,
+)
 from .spheres import sphere_grid
 from .volumes import ellipsoid_volumes, stretched_gain
 from .walls import WALL_MARGIN_R, check_walls, grow_walls, mirror_ghosts, mirror_matrices

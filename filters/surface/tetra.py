@@ -254,9 +254,9 @@ def tile_boxes(shape: tuple[int, int, int], tile: int = 32, which: int = 0) -> N
         return np.zeros((0, 7), np.int64)
     cuts = [np.unique(np.r_[np.arange(0, n - 1, tile), n - 1]) for n in (nx, ny, nz)]
     boxes = [(which, i0, j0, k0, i1, j1, k1)
-             for k0, k1 in zip(cuts[2][:-1], cuts[2][1:])
-             for j0, j1 in zip(cuts[1][:-1], cuts[1][1:])
-             for i0, i1 in zip(cuts[0][:-1], cuts[0][1:])]
+             for k0, k1 in zip(cuts[2][:-1], cuts[2][1:], strict=False)
+             for j0, j1 in zip(cuts[1][:-1], cuts[1][1:], strict=False)
+             for i0, i1 in zip(cuts[0][:-1], cuts[0][1:], strict=False)]
     return np.array(boxes, np.int64).reshape(-1, 7)
 
 

@@ -59,7 +59,8 @@ def stretched_gain(anisotropy: np.ndarray) -> NDArray[np.float64]:
 def _volumes_cells(sc, order, start, origin, cell, dims, reach, sg, smd, need, volumes,
                    exact=False):
     """SPH volumes under the anisotropic kernels themselves, on centres sorted into cells
-    (:func:`filters.binning.sort_into_cells`) ``reach`` of which span the longest kernel reach: ``V_j = m_j /
+    (:func:`filters.binning.sort_into_cells`) ``reach`` of which span the longest kernel reach:
+    ``V_j = m_j /
     rho_j`` with ``rho_j = sum_k m_k (8 / pi) det(G_k) P(|G_k (c_j - c_k)|)`` (``P`` the cubic
     spline of unit support and peak 1, ``8 / pi`` its normalisation; the particle itself
     included). ``sg`` holds the 6 entries of ``G_k`` and ``smd`` the
@@ -234,7 +235,8 @@ def ellipsoid_volumes(centres: np.ndarray, G: np.ndarray, dets: np.ndarray, m: n
     o, start, sc = sort_into_cells(centres, lo, 1.0 / cell, dims)
     g6 = G[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
     # float32 offsets from a cell's corner resolve the kernels to ~1e-5 while cells are at most
-    # 64 reaches wide (grown over a sparse domain, see filters.binning.fitting_cells); wider ones (a domain
+    # 64 reaches wide (grown over a sparse domain, see filters.binning.fitting_cells); wider ones (a
+    # domain
     # ~10^4 reaches across, up to 1e293 m cells for a 1e300 m spread) sum in float64 about
     # each target, slower but exact
     grown = cell > 64.0 * reach

@@ -9,7 +9,8 @@ Landrini 2003) gives the particles next to the wall the neighbourhood of the liq
 and the field inside the container near the wall its interior value: intersected with the
 container, the surface then meets the walls, their edges and their corners without a gap: the
 field is computed up to :data:`WALL_MARGIN_R` radii beyond the walls, where the continued
-surface is cut exactly at the walls' planes. A particle within ``reach`` of one wall gets one ghost, of two walls (an
+surface is cut exactly at the walls' planes. A particle within ``reach`` of one wall gets one ghost,
+of two walls (an
 edge) three, of three walls (a corner) seven: the images under every combination of the
 reflections.
 """

@@ -217,7 +217,8 @@ def test_noise_smoke_scene_writes_points_and_surface(tmp_path):
     times, particles = read_series(tmp_path / "particles.pvd")
     assert times.tolist() == [0.0, 0.1, 0.2, 0.3]
     counts = [m.n_points for m in particles]
-    assert counts[0] == 0 and all(abs(c - 600 * t) <= 2 for c, t in zip(counts, times))
+    assert counts[0] == 0
+    assert all(abs(c - 600 * t) <= 2 for c, t in zip(counts, times, strict=False))
     last = particles[-1]
     for name in ("velocity", "id", "age", "size", "color"):
         assert name in last.point_data
@@ -245,7 +246,7 @@ def test_noise_smoke_resumes_bit_identically_from_disk(tmp_path):
     _, full = read_series(tmp_path / "full" / "particles.pvd")
     _, split = read_series(tmp_path / "split" / "particles.pvd")
     assert len(full) == len(split) == 6
-    for a, b in zip(full, split):
+    for a, b in zip(full, split, strict=False):
         assert np.array_equal(a.points, b.points)
         assert np.array_equal(a.point_data["id"], b.point_data["id"])
         assert np.array_equal(a.point_data["velocity"], b.point_data["velocity"])

@@ -3,8 +3,16 @@
 import numpy as np
 import pytest
 
-from filters.binning import (EMPTY_KEY, cell_keys, counting_sort, fitting_cells, index_keys,
-                             insert_key, lookup, sort_into_cells)
+from filters.binning import (
+    EMPTY_KEY,
+    cell_keys,
+    counting_sort,
+    fitting_cells,
+    index_keys,
+    insert_key,
+    lookup,
+    sort_into_cells,
+)
 
 
 def test_counting_sort_is_stable_and_independent_of_the_chunks(rng):

@@ -7,8 +7,15 @@ import numpy as np
 import pytest
 
 from filters.elastic.contact import Colliders
-from filters.geometry import (Box, Complement, Plane, Sphere, pack_shapes, packed_distance,
-                              union_distance)
+from filters.geometry import (
+    Box,
+    Complement,
+    Plane,
+    Sphere,
+    pack_shapes,
+    packed_distance,
+    union_distance,
+)
 from filters.sph.boundary import box_boundary
 
 

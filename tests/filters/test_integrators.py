@@ -5,12 +5,17 @@ import math
 import numpy as np
 import pytest
 
-from filters.integrators import (backward_euler, euler, implicit_advection, integrate,
-                                 symplectic_euler)
-from filters.linalg import pcg, solve_linear
-from filters.simulation import State
 from filters.elastic.springs import SpringSystem
 from filters.elastic.topology import cloth_grid
+from filters.integrators import (
+    backward_euler,
+    euler,
+    implicit_advection,
+    integrate,
+    symplectic_euler,
+)
+from filters.linalg import pcg, solve_linear
+from filters.simulation import State
 
 
 def _oscillator(k=1.0, m=1.0, c=0.0, x0=1.0):

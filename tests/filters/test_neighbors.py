@@ -50,7 +50,7 @@ def test_backends_identical_including_cell_boundaries(cells_per_radius):
         offsets, indices = ns.query(sort=True)
         rows = as_rows(offsets, indices)
         assert len(rows) == len(ref)
-        for a, b in zip(rows, ref):
+        for a, b in zip(rows, ref, strict=False):
             np.testing.assert_array_equal(a, b)
     d = np.linalg.norm(pts[ns.pairs()[:, 0]] - pts[ns.pairs()[:, 1]], axis=1)
     exact_pairs = int((d == r).sum())
@@ -65,7 +65,7 @@ def test_external_queries_identical_across_backends():
     ref = brute_force(q, pts, r, False)
     for backend in BACKENDS:
         offsets, indices = NeighborSearch(r, backend).build(pts).query(q, sort=True)
-        for a, b in zip(as_rows(offsets, indices), ref):
+        for a, b in zip(as_rows(offsets, indices), ref, strict=False):
             np.testing.assert_array_equal(a, b)
 
 

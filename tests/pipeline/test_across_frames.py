@@ -54,7 +54,7 @@ def test_a_static_series_keeps_its_single_frame_surfaces(tmp_path):
     single = meshes(tmp_path / "one" / "surface.pvd")
     across = meshes(tmp_path / "five" / "surface.pvd")
     assert len(across) == 5
-    for (p, t), (q, u) in zip(single, across):
+    for (p, t), (q, u) in zip(single, across, strict=False):
         np.testing.assert_array_equal(t, u)
         np.testing.assert_array_equal(q, p)
     # the first pass's single-frame surfaces are gone once the series is complete
@@ -88,7 +88,7 @@ def test_a_moving_drop_jitters_no_more_and_keeps_its_volume(tmp_path):
     # voxel wide, which the offsets' smoothing over the mesh mostly keeps (the SPH frames'
     # gain is measured in bench_splash.py); what must hold is that it never gets worse
     assert unexplained(across) < unexplained(single)
-    for (p, t), (q, u) in zip(single, across):
+    for (p, t), (q, u) in zip(single, across, strict=False):
         assert abs(mesh_stats(q, u).volume / mesh_stats(p, t).volume - 1) < 0.005
 
 

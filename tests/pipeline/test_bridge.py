@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pyvista as pv
 
+from pipeline.io.series import read_frame, write_frame
 from pipeline.paraview.bridge import describe, serve
 from pipeline.scene import available_scenes, load_scene
-from pipeline.io.series import read_frame, write_frame
 from pipeline.surface import reconstruct
 from pipeline.surface.options import SURFACE_DEFAULTS
 

@@ -6,23 +6,27 @@ resume; the file is read without pickle, and a damaged or foreign one is never u
 import os
 import subprocess
 import sys
-import zipfile
 from pathlib import Path
 
+import _checkpoint_runs
 import numpy as np
 import pytest
+from _helpers import ballistic
 from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters.simulation import State
 from pipeline import Flow, SimulationSource
-from pipeline.io.checkpoint import (Checkpoint, CheckpointError, checkpoint_path, file_digest,
-                                 read_checkpoint, write_checkpoint)
 from pipeline.cli import main
+from pipeline.io.checkpoint import (
+    Checkpoint,
+    CheckpointError,
+    checkpoint_path,
+    file_digest,
+    read_checkpoint,
+    write_checkpoint,
+)
 from pipeline.io.convert import has_state, state_to_field_data
 from pipeline.io.series import read_collection, read_frame
-
-import _checkpoint_runs
-from _helpers import ballistic
 
 ROOT = Path(__file__).resolve().parents[2]
 DRIVER = ROOT / "tests" / "_checkpoint_runs.py"

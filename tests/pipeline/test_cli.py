@@ -143,7 +143,7 @@ def test_surface_of_a_scene_run_rebuilds_the_scene_surface(tmp_path, capsys):
     _, scene = read_series(run / "surface.pvd")
     _, again = read_series(tmp_path / "again" / "surface.pvd")
     assert len(scene) == len(again) == 2
-    for a, b in zip(scene, again):
+    for a, b in zip(scene, again, strict=False):
         assert a.n_points > 0
         np.testing.assert_array_equal(a.points, b.points)
         np.testing.assert_array_equal(a.faces, b.faces)
@@ -238,7 +238,8 @@ def test_one_line_notice_when_numba_compiles(capsys):
 def test_paraview_command_names_the_plugin(capsys):
     code, out, _ = _run_cli(capsys, "paraview")
     plugin = Path(out.split("ParaView plugin: ", 1)[1].split("\n", 1)[0])
-    assert code == 0 and plugin.name == "plugin.py" and plugin.parent.name == "paraview" and plugin.is_file()
+    assert code == 0 and plugin.name == "plugin.py" and plugin.parent.name == "paraview"
+    assert plugin.is_file()
     assert f"--script={plugin.with_name('startup.py')}" in out
     code, _, err = _run_cli(capsys, "paraview", "file.pvd")
     assert code == 2 and "need --launch" in err

@@ -3,16 +3,22 @@ parameters; the file round-trips the exact shapes; bad declarations are refused.
 
 import numpy as np
 import pytest
+from _helpers import ballistic
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
 from filters.geometry import Box, Plane, Sphere
 from pipeline import Flow, SimulationSource
-from pipeline.io.colliders import (COLLIDERS_FILE, ROLES, Collider, collider_mesh,
-                                colliders_dataset, read_colliders, write_colliders)
+from pipeline.io.colliders import (
+    COLLIDERS_FILE,
+    ROLES,
+    Collider,
+    collider_mesh,
+    colliders_dataset,
+    read_colliders,
+    write_colliders,
+)
 from pipeline.scene import available_scenes, load_scene
-
-from _helpers import ballistic
 
 #: Small runs of every scene (one frame), with parameters that differ from the defaults so that
 #: the geometry is seen to follow them.
@@ -96,7 +102,7 @@ def test_scene_writes_colliders_matching_its_parameters(name, tmp_path):
     offsets = numpy_support.vtk_to_numpy(data.GetPolys().GetOffsetsArray())
     index = numpy_support.vtk_to_numpy(data.GetCellData().GetArray("collider"))
     role_code = numpy_support.vtk_to_numpy(data.GetCellData().GetArray("role"))
-    for i, (n, role, kind) in enumerate(zip(names, roles, kinds)):
+    for i, (n, role, kind) in enumerate(zip(names, roles, kinds, strict=False)):
         exp_role, exp_kind, exp_params = expected[n]
         assert (role, kind) == (exp_role, exp_kind)
         params = numpy_support.vtk_to_numpy(field.GetArray(n))

@@ -21,13 +21,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
+from _crafted import (
+    COMPRESSORS,
+    ENCODINGS,
+    huge_block_header,
+    huge_last_offset,
+    huge_points,
+    reencode,
+)
 
 from pipeline.cli import main
 from pipeline.io.series import read_frame, write_frame
 from pipeline.io.xmlcheck import UnsafeFileError, check_vtk_xml
-
-from _crafted import (COMPRESSORS, ENCODINGS, huge_block_header, huge_last_offset,
-                      huge_points, reencode)
 
 ROOT = Path(__file__).resolve().parents[2]
 WORKER = ROOT / "tests" / "_read_worker.py"
@@ -203,12 +208,13 @@ def test_every_reader_path_answers_a_crafted_frame_with_one_line(run, tmp_path):
     requests = "".join(json.dumps({"command": "surface", "source": str(bad[k]),
                                    "target": str(tmp_path / f"{k}.vtp"),
                                    "options": {"radius": 0.01}}) + "\n" for k in bad)
-    answer = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"], input=requests,
+    answer = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"],
+                            input=requests,
                             capture_output=True, text=True, timeout=240, env=_env())
     assert answer.returncode == 0, answer.stderr[-2000:]
     replies = [json.loads(line) for line in answer.stdout.splitlines()]
     assert [r["ok"] for r in replies] == [False] * len(bad)
-    assert all(str(bad[k]) in r["error"] for k, r in zip(bad, replies))
+    assert all(str(bad[k]) in r["error"] for k, r in zip(bad, replies, strict=False))
     assert not list(tmp_path.glob("*.vtp"))
 
 
@@ -302,7 +308,7 @@ def test_mutated_real_frames_read_back_exactly_or_fail_with_one_line(run, tmp_pa
             result = subprocess.run([sys.executable, str(WORKER), str(source), *files],
                                     capture_output=True, text=True, timeout=300, env=_env())
             lines = result.stdout.splitlines()
-            for path, line in zip(files, lines):
+            for path, line in zip(files, lines, strict=False):
                 verdict = line.split()[0]
                 assert verdict in ("same", "error"), f"{path}: read as a different frame"
                 assert verdict == "same" or not path.startswith(str(tmp_path / label)), \

@@ -1,17 +1,14 @@
 """Frame-parallel processing: serial and Dask runs agree byte for byte, and failures stay local."""
 
-import shutil
-import sys
 
+import _frame_tasks
 import pytest
+from _helpers import ballistic
 
 from pipeline import Flow, SimulationSource, read_series
 from pipeline.cli import main
 from pipeline.surface.frames import surface_series
 from pipeline.tasks import FramesError, map_frames
-
-import _frame_tasks
-from _helpers import ballistic
 
 distributed = pytest.importorskip("dask.distributed", reason="install blobflow[dask]")
 

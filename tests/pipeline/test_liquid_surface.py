@@ -14,9 +14,9 @@ from filters.sph.scenarios import dam_break_liquid
 from filters.surface.mesh import mesh_stats
 from pipeline import Flow, SimulationSource
 from pipeline.algorithm import run_chain
-from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
 from pipeline.io.series import read_series
 from pipeline.surface import surface_stages
+from pipeline.surface.contour import mesh_to_polydata, polydata_to_mesh
 from pipeline.surface.options import liquid_surface_options
 
 S = 0.02  # particle spacing (m)

@@ -10,8 +10,8 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 from filters.surface.mesh import mesh_stats
 from filters.surface.splat import splat_sparse
 from pipeline.algorithm import run_chain
-from pipeline.surface.contour import contour_dense, contour_sparse, polydata_to_mesh
 from pipeline.surface import MarchingCubes, MetaballSplat, surface_stages
+from pipeline.surface.contour import contour_dense, contour_sparse, polydata_to_mesh
 from pipeline.surface.options import SURFACE_PARAMETERS
 
 

@@ -15,17 +15,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _helpers import ballistic
 
 from filters import BallisticParticles
 from filters.kernels import SPLAT_KERNELS
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
-from pipeline.scene import available_scenes, load_scene
 from pipeline.io.series import read_frame, read_series
+from pipeline.scene import available_scenes, load_scene
 from pipeline.surface import reconstruct
 from pipeline.surface.options import SURFACE_DEFAULTS
-
-from _helpers import ballistic
 
 PVPYTHON = shutil.which("pvpython")
 PVBATCH = shutil.which("pvbatch")
@@ -201,7 +200,7 @@ def test_readme_pvpython_recipe_loads_the_plugin_from_another_folder(tmp_path):
 
     times, frames = read_series(particles)
     assert [s["time"] for s in seen["surfaces"]] == times[:2].tolist()
-    for index, (step, frame) in enumerate(zip(seen["surfaces"], frames)):
+    for index, (step, frame) in enumerate(zip(seen["surfaces"], frames, strict=False)):
         assert step["points"] > 0 and step["triangles"] > 0 and step["open_edges"] == 0
         assert step["kind"] == "particle_surface"
         plugin = read_frame(tmp_path / f"plugin_surface_{index}.vtp")

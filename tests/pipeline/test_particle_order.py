@@ -4,10 +4,8 @@ interpolating between time samples by index (ParaView's TemporalInterpolator, US
 particle to the middle of its own path.  Frames stay lean: no checkpoint in them."""
 
 import json
-import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +14,8 @@ import pytest
 from filters.simulation import Frame, OutputSpec, Simulation, State
 from pipeline import Flow, SimulationSource
 from pipeline.io.convert import frame_to_vtk, id_order
-from pipeline.scene import load_scene
 from pipeline.io.series import read_collection, read_series
+from pipeline.scene import load_scene
 
 HERE = Path(__file__).parent
 PVPYTHON = shutil.which("pvpython")
@@ -62,7 +60,7 @@ def test_sph_scenes_write_every_particle_in_the_same_row_in_every_frame(scene, t
 
 def test_written_drop_frames_are_in_id_order_and_move_continuously(drop_run):
     _, _, times, frames = drop_run
-    for a, b, dt in zip(frames, frames[1:], np.diff(times)):
+    for a, b, dt in zip(frames, frames[1:], np.diff(times), strict=False):
         np.testing.assert_array_equal(_ids(a), np.arange(a.n_points))
         np.testing.assert_array_equal(_ids(b), _ids(a))
         # the same row is the same particle: it moved at most as far as the fastest went
@@ -76,7 +74,7 @@ def test_noise_smoke_appends_the_emitted_and_removes_the_dead_in_order(tmp_path)
     _, (times, frames) = _run_scene("noise_smoke", tmp_path, 8, rate=400.0, lifetime=0.2,
                                     surface=False, seed=3)
     died = appended = 0
-    for a, b in zip(frames, frames[1:]):
+    for a, b in zip(frames, frames[1:], strict=False):
         ia, ib = _ids(a), _ids(b)
         assert np.all(np.diff(ib) > 0)
         survivors = ia[np.isin(ia, ib)]
@@ -231,7 +229,7 @@ def test_particle_frames_hold_no_state_and_at_most_100_bytes_a_particle(tmp_path
     flow, (times, frames) = _run_scene("drop", out, 16, fps=30.0, surface=False)
     n = flow.source.simulation.state.n_points
     assert n > 1500
-    for (t, name), frame in zip(read_collection(out / "particles.pvd"), frames):
+    for (t, name), frame in zip(read_collection(out / "particles.pvd"), frames, strict=False):
         # no checkpoint arrays: the time and the safety net's count are all the field data
         assert sorted(frame.field_data.keys()) == ["TimeValue", "container_corrections"]
         size = (out / name).stat().st_size

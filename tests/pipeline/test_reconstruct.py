@@ -260,14 +260,14 @@ def test_accessor_on_a_whole_series_as_a_multiblock_and_written(falling, tmp_pat
     times, frames = read_series(falling)
     surfaces = pv.MultiBlock(frames).blobflow.surface(RADIUS, liquid=True, **OPTIONS)
     assert len(surfaces) == len(frames) == 3
-    for surface, frame, t in zip(surfaces, frames, times):
+    for surface, frame, t in zip(surfaces, frames, times, strict=False):
         _assert_same_surface(surface, reconstruct(frame, RADIUS, liquid=True, **OPTIONS))
         assert surface.field_data["TimeValue"][0] == t  # the frame's time, carried
         assert not any(k.startswith("state:") for k in surface.field_data.keys())
     path = surfaces.blobflow.write_series(tmp_path / "surface.pvd")
     written_times, written = read_series(path)
     np.testing.assert_array_equal(written_times, times)
-    for surface, frame in zip(written, surfaces):
+    for surface, frame in zip(written, surfaces, strict=False):
         _assert_same_surface(surface, frame)
         assert surface.field_data["blobflow_kind"][0] == "liquid_surface"
     with pytest.raises(ValueError, match="one time per block"):

@@ -17,14 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
+from _helpers import ballistic, failing_ballistic
 
 from filters.memory import MEMORY_ENV, MemoryLimitError, check_memory, format_bytes
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
-from pipeline.scene import Scene, available_scenes, load_scene
 from pipeline.io.series import SeriesError, SeriesWriter, read_frame, read_series, write_frame
-
-from _helpers import ballistic, failing_ballistic
+from pipeline.scene import Scene, available_scenes, load_scene
 
 
 def _cli(capsys, *argv):
@@ -129,7 +128,7 @@ def _same_frame(a, b) -> bool:
     if a.n_points != b.n_points or not np.array_equal(a.points, b.points):
         return False
     return all(np.array_equal(a.point_data[x], b.point_data[y])
-               for x, y in zip(a.point_data.keys(), b.point_data.keys()))
+               for x, y in zip(a.point_data.keys(), b.point_data.keys(), strict=False))
 
 
 def test_3_fuzz_series_reader_truncations_and_byte_flips(tmp_path, rng):

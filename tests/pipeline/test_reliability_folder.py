@@ -145,7 +145,8 @@ def test_2_temporary_names_are_unique_per_process_and_swept_after_a_crash(tmp_pa
     here = {temporary_path(target).name for _ in range(50)}
     assert len(here) == 50 and all(is_temporary_name(n) for n in here)
     assert all(f"-{os.getpid()}-" in n and n.endswith(".tmp.pvd") for n in here)
-    code = ("import sys\nfrom pathlib import Path\nfrom pipeline.io.outfiles import temporary_path\n"
+    code = ("import sys\nfrom pathlib import Path\n"
+            "from pipeline.io.outfiles import temporary_path\n"
             "p = temporary_path(Path(sys.argv[1]))\np.write_text('half')\nprint(p.name)\n")
     other = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True,
                            text=True, env=_env(), check=True).stdout.strip()
@@ -297,7 +298,7 @@ def test_11_a_checkpoint_that_does_not_fit_is_refused_and_the_right_resume_still
     whole = _bouncing(tmp_path, capsys, "whole", duration="0.2")
     (t1, f1), (t2, f2) = read_series(out / "particles.pvd"), read_series(whole / "particles.pvd")
     assert list(t1) == list(t2)
-    for x, y in zip(f1, f2):
+    for x, y in zip(f1, f2, strict=False):
         np.testing.assert_array_equal(x.points, y.points)
 
 

@@ -20,13 +20,13 @@ import pyvista as pv
 from filters.memory import MEMORY_ENV
 from filters.surface import crowding
 from filters.surface.crowding import CrowdingError, check_crowding, pair_work_limit
-from pipeline.paraview import bridge
 from pipeline.cli import main
 from pipeline.cli.common import max_workers
-from pipeline.surface.contour import brick_chunk
-from pipeline.render import max_views
 from pipeline.io.series import SeriesWriter
+from pipeline.paraview import bridge
+from pipeline.render import max_views
 from pipeline.surface import reconstruct
+from pipeline.surface.contour import brick_chunk
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -139,7 +139,8 @@ def test_7_the_bridge_answers_bad_lines_and_failures_and_carries_on(tmp_path, mo
     assert (tmp_path / "o.vtp").is_file()
     # the same in the worker process the plugin keeps
     stdin = lines[0] + "\n" + json.dumps({**request, "target": str(tmp_path / "p.vtp")}) + "\n"
-    result = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"], input=stdin,
+    result = subprocess.run([sys.executable, "-m", "pipeline.paraview.bridge", "serve"],
+                            input=stdin,
                             capture_output=True, text=True, timeout=240, env=_env())
     assert result.returncode == 0 and "Traceback" not in result.stderr
     assert [json.loads(line)["ok"] for line in result.stdout.splitlines()] == [False, True]

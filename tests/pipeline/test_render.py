@@ -7,14 +7,13 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 import pyvista as pv
+from _helpers import ballistic
 
 from pipeline import Flow, SimulationSource
 from pipeline.cli import main
+from pipeline.io.series import SeriesWriter, read_series
 from pipeline.render import Renderer, parse_size, timelapse, turntable
 from pipeline.scene import available_scenes, load_scene
-from pipeline.io.series import SeriesWriter, read_series
-
-from _helpers import ballistic
 
 pytestmark = pytest.mark.render
 

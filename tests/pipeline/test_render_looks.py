@@ -14,11 +14,17 @@ import pyvista as pv
 from filters.geometry import Box, Plane
 from pipeline.cli import main
 from pipeline.io.colliders import COLLIDERS_FILE, Collider, write_colliders
-from pipeline.render.gallery import GALLERY_SIZE, code_mtime, gallery_still, run_is_current, run_series
+from pipeline.io.series import SeriesWriter
 from pipeline.render import frame_at_time, interesting_frame, turntable
+from pipeline.render.gallery import (
+    GALLERY_SIZE,
+    code_mtime,
+    gallery_still,
+    run_is_current,
+    run_series,
+)
 from pipeline.render.renderer import Renderer
 from pipeline.scene import Scene, available_scenes, load_scene
-from pipeline.io.series import SeriesWriter
 
 pytestmark = pytest.mark.render
 
@@ -113,7 +119,7 @@ def test_tank_edges_are_drawn_along_their_projection(empty_tank):
 
     top = corners(hi[2])
     edges = [(top[k], top[(k + 1) % 4]) for k in range(4)]
-    edges += [(a, b) for a, b in zip(corners(lo[2]), top)]
+    edges += [(a, b) for a, b in zip(corners(lo[2]), top, strict=False)]
     samples = [a + f * (b - a) for a, b in edges for f in np.linspace(0.15, 0.85, 8)]
     with Renderer(path, size=SIZE, text=False) as renderer:
         image = renderer.render(0, 0.0)

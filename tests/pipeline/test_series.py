@@ -7,13 +7,12 @@ import xml.etree.ElementTree as ET
 import meshio
 import numpy as np
 import pytest
+from _helpers import ballistic, failing_ballistic
 from vtkmodules.vtkFiltersCore import vtkElevationFilter
 
 from filters import SimulationError
 from pipeline import Flow, SimulationSource, export_xdmf, read_series
 from pipeline.io.series import SeriesError, SeriesWriter, read_collection
-
-from _helpers import ballistic, failing_ballistic
 
 
 def _run(tmp_path, name="run", sim=None, dataset=None, **kwargs):
@@ -36,7 +35,7 @@ def test_round_trip_through_vtk_readers(tmp_path):
     _, paths = _run(tmp_path)
     times, meshes = read_series(paths["particles"])
     assert times.tolist() == [round(i / 20, 9) for i in range(11)]
-    for mesh, (x, v), t in zip(meshes, _reference_frames(), times):
+    for mesh, (x, v), t in zip(meshes, _reference_frames(), times, strict=False):
         np.testing.assert_array_equal(mesh.points, x)
         np.testing.assert_array_equal(mesh.point_data["velocity"], v)
         np.testing.assert_array_equal(mesh.point_data["id"], np.arange(20))
@@ -62,7 +61,8 @@ def test_round_trip_through_meshio_vtu(tmp_path):
     _, paths = _run(tmp_path, dataset="unstructured")
     times, _ = read_series(paths["particles"])
     folder = paths["particles"].parent
-    for (t, name), (x, v) in zip(read_collection(paths["particles"]), _reference_frames()):
+    for (t, name), (x, v) in zip(read_collection(paths["particles"]), _reference_frames(),
+                                 strict=False):
         mesh = meshio.read(folder / name)
         np.testing.assert_array_equal(mesh.points, x)
         np.testing.assert_array_equal(mesh.point_data["velocity"], v)
@@ -95,7 +95,8 @@ def test_xdmf_export_round_trip_through_vtk_reader(tmp_path):
     expected = _reference_frames()
     times, frames = _read_xdmf(xdmf)
     assert times == [round(k / 20, 9) for k in range(len(expected))]
-    for frame, (x, v) in zip(frames, expected):  # every step, t = 0 included, bit for bit
+    # every step, t = 0 included, bit for bit
+    for frame, (x, v) in zip(frames, expected, strict=False):
         assert frame.n_points == len(x) and frame.n_cells == len(x)
         assert set(frame.celltypes.tolist()) <= {1, 2}  # one-point (poly)vertices
         assert frame.get_cell(len(x) - 1).point_ids == [len(x) - 1]
@@ -215,7 +216,7 @@ def test_xdmf_export_keeps_polylines(tmp_path):
         assert text in xdmf.read_text()
         times, frames = _read_xdmf(xdmf)
         assert times == [0.0, 0.5]
-        for t, frame in zip(times, frames):
+        for t, frame in zip(times, frames, strict=False):
             np.testing.assert_array_equal(frame.points, points + t)
             cells = [frame.get_cell(i).point_ids for i in range(frame.n_cells)]
             assert cells == ([[0, 1, 2], [3, 4, 5]] if name == "equal" else [[0, 1, 2], [3, 4]])

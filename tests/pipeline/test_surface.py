@@ -12,11 +12,10 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 
 from filters import BallisticParticles
 from filters.kernels import lone_particle_radius
-from filters.surface.splat import splat_dense, splat_sparse
 from filters.surface.mesh import mesh_stats
+from filters.surface.splat import splat_dense, splat_sparse
 from pipeline import SimulationSource
 from pipeline.algorithm import Algorithm, connect_chain, run_chain, update
-from pipeline.surface.contour import contour_dense, contour_sparse, polydata_to_mesh
 from pipeline.surface import (
     FeatureSmoothing,
     InterpolateAttributes,
@@ -26,6 +25,7 @@ from pipeline.surface import (
     Smooth,
     surface_stages,
 )
+from pipeline.surface.contour import contour_dense, contour_sparse, polydata_to_mesh
 
 S = 0.02  # lattice spacing (m)
 
@@ -233,7 +233,7 @@ def test_per_particle_radius_and_container_clip():
     poly.GetPointData().AddArray(arr)
     pts, tris = polydata_to_mesh(_run([MetaballSplat(0.01, 0.001, radius_array="radius"),
                                        MarchingCubes()], poly))
-    for centre, radius in zip(x, r):
+    for centre, radius in zip(x, r, strict=False):
         near = np.linalg.norm(pts - centre, axis=1) < 0.1
         d = np.linalg.norm(pts[near] - centre, axis=1)
         assert d.mean() == pytest.approx(lone_particle_radius("sph", radius), rel=0.01)

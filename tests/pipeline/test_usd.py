@@ -50,7 +50,7 @@ def _check_stage(path, series_paths):
         codes = [round(t * FPS) for t in times]
         assert points_attr.GetTimeSamples() == codes  # one sample per frame, on whole frames
         assert stage.GetStartTimeCode() == codes[0] and stage.GetEndTimeCode() == codes[-1]
-        for code, frame in zip(codes, frames):
+        for code, frame in zip(codes, frames, strict=False):
             np.testing.assert_array_equal(np.asarray(points_attr.Get(code)),
                                           np.asarray(frame.points, np.float32))
             velocities = UsdGeom.PointBased(prim).GetVelocitiesAttr().Get(code)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from filters.simulation import SimulationUnstableError
-from pipeline.cli import warmup
 from pipeline.algorithm import run_chain
+from pipeline.cli import warmup
 from pipeline.io.convert import frame_to_vtk
 from pipeline.scene import load_scene
 from pipeline.surface import surface_stages

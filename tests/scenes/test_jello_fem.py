@@ -6,8 +6,8 @@ import pytest
 from filters.elastic.tetmesh import tet_volumes
 from filters.elastic.topology import mesh_volume
 from pipeline.cli import main
-from pipeline.scene import load_scene
 from pipeline.io.series import read_series
+from pipeline.scene import load_scene
 
 SMALL = {"spacing": 0.06, "radius": 0.12, "height": 0.1}
 
@@ -32,7 +32,7 @@ def test_jello_falls_rests_on_the_floor_and_keeps_its_volume(run):
     rest = tet_volumes(first.points, cells).sum()
     triangles = surfaces[0].faces.reshape(-1, 4)[:, 1:]
     rest_mesh = mesh_volume(surfaces[0].points, triangles)
-    for grid, surface in zip(tets, surfaces):
+    for grid, surface in zip(tets, surfaces, strict=False):
         x = np.asarray(grid.points)
         # the mesh's vertices touch the floor (a 1 mm barrier): never through it
         assert np.asarray(surface.points)[:, 2].min() > 0.0
@@ -46,7 +46,7 @@ def test_jello_falls_rests_on_the_floor_and_keeps_its_volume(run):
     assert np.asarray(surfaces[0].points)[:, 2].min() == pytest.approx(0.1)
     assert np.asarray(surfaces[-1].points)[:, 2].min() < 2e-3
     # and, settling, keeps its volume within 1 %
-    for grid, surface in zip(tets[-3:], surfaces[-3:]):
+    for grid, surface in zip(tets[-3:], surfaces[-3:], strict=False):
         assert tet_volumes(np.asarray(grid.points), cells).sum() == pytest.approx(rest, rel=0.01)
         assert mesh_volume(surface.points, triangles) == pytest.approx(rest_mesh, rel=0.01)
     assert np.asarray(tets[-1].cell_data["strain_energy_density"]).max() > 0.0
@@ -80,7 +80,7 @@ def test_embedded_mesh_follows_the_tetrahedra(run):
     embedding = flow.source.simulation.model.mesh.embedding
     _, tets = read_series(run / "tets.pvd")
     _, surfaces = read_series(run / "jello.pvd")
-    for grid, surface in zip(tets[::8], surfaces[::8]):
+    for grid, surface in zip(tets[::8], surfaces[::8], strict=False):
         np.testing.assert_allclose(surface.points, embedding.points(np.asarray(grid.points)),
                                    rtol=0, atol=1e-12)
         np.testing.assert_allclose(surface.point_data["velocity"],

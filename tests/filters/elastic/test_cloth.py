@@ -4,11 +4,20 @@ import numpy as np
 import pytest
 
 from filters.elastic.contact import Colliders
-from filters.geometry import Plane, Sphere
 from filters.elastic.mass_spring import ClothSimulation, HairSimulation, JelloSimulation
+from filters.elastic.topology import (
+    BEND,
+    SHEAR,
+    STRETCH,
+    cloth_from_mesh,
+    cloth_grid,
+    hair_strands,
+    icosphere,
+    jello_from_mesh,
+    mesh_volume,
+)
+from filters.geometry import Plane, Sphere
 from filters.simulation import SimulationUnstableError, State
-from filters.elastic.topology import (BEND, SHEAR, STRETCH, cloth_from_mesh, cloth_grid, hair_strands,
-                              icosphere, jello_from_mesh, mesh_volume)
 
 # The stiff-cloth case of the issue, with NVIDIA Warp's cloth-example scales: 0.1 m cells and
 # 0.1 kg particles (areal density 10 kg/m^2), seed-form stiffness k = 1e5 N.

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from filters.elastic.springs import SpringSystem
+from filters.elastic.topology import cloth_grid
 from filters.integrators import backward_euler
 from filters.linalg import LinearSolver, pcg_operator, solve_linear
 from filters.simulation import State
-from filters.elastic.springs import SpringSystem
-from filters.elastic.topology import cloth_grid
 
 
 def _system(mode, damping, drag=0.0, zero_rest=False):

@@ -110,7 +110,7 @@ def test_array_path_equals_the_reference_transcription_bitwise(seed):
     from filters.noise.perlin import kernel_table, perlin_value
 
     table = kernel_table(seed)
-    assert all(perlin_value(table, *pt) == e for pt, e in zip(pts.tolist(), expected))
+    assert all(perlin_value(table, *pt) == e for pt, e in zip(pts.tolist(), expected, strict=False))
 
 
 def test_value_loop_is_512_bits_wide_where_the_cpu_has_avx512():
@@ -290,7 +290,7 @@ def test_curl_noise_divergence_free_with_h2_convergence():
     assert speed.mean() > 0.3  # a real flow, not a zero field
     errors = [np.abs(_fd_divergence(field, pts, h)) for h in (4e-2, 2e-2, 1e-2)]
     # shrinks as h^2: each halving divides the error by ~4
-    for coarse, fine in zip(errors[:-1], errors[1:]):
+    for coarse, fine in zip(errors[:-1], errors[1:], strict=False):
         ratio = np.median(coarse / np.maximum(fine, 1e-300))
         assert 3.5 < ratio < 4.5
     assert errors[-1].max() < errors[0].max() / 10.0

@@ -7,8 +7,13 @@ import pytest
 from rigid_shapes import ball, box_mesh, l_prism, tet_inertia, tetrahedron
 
 from filters.elastic.topology import icosphere
-from filters.rigid import (RigidBody, check_closed_mesh, mass_properties,
-                           quaternion_from_axis_angle, rotation_matrices)
+from filters.rigid import (
+    RigidBody,
+    check_closed_mesh,
+    mass_properties,
+    quaternion_from_axis_angle,
+    rotation_matrices,
+)
 from filters.rigid.body import edge_points
 
 

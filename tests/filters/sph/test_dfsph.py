@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from filters import SimulationUnstableError, State
-from filters.sph.boundary import box_boundary
 from filters.sph import SPHLiquid
+from filters.sph.boundary import box_boundary
 from filters.sph.scenarios import dam_break_liquid
+
 
 def lattice(lo, hi, s):
     axes = [lo[k] + (np.arange(int(round((hi[k] - lo[k]) / s))) + 0.5) * s for k in range(3)]

@@ -7,8 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from filters.sph.martin_moyce import (FRONT_T, FRONT_Z, HEIGHT_H, HEIGHT_TAU, column_height,
-                                      compare, surge_front)
+from filters.sph.martin_moyce import (
+    FRONT_T,
+    FRONT_Z,
+    HEIGHT_H,
+    HEIGHT_TAU,
+    column_height,
+    compare,
+    surge_front,
+)
 from filters.sph.scenarios import dam_break_liquid
 
 A = 0.1

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from filters import SimulationUnstableError, State
-from filters.sph.boundary import box_boundary, lattice_volume, mesh_boundary
 from filters.sph import SPHLiquid
+from filters.sph.boundary import box_boundary, lattice_volume, mesh_boundary
 from filters.sph.scenarios import dam_break_liquid, drop_liquid
 
 

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from filters.sph import BoundaryParticles, ContainerCorrectionWarning, SPHLiquid
-from filters.sph.boundary import (box_boundary, concatenate_boundaries, lattice_volume,
-                                  mesh_boundary)
+from filters.sph.boundary import box_boundary, concatenate_boundaries, lattice_volume, mesh_boundary
 from filters.sph.scenarios import dam_break_liquid
 from filters.sph.wall_profile import WallProfile, equivalent_distance, half_space_fraction
 

@@ -9,13 +9,20 @@ import pytest
 
 from filters.kernels import lone_particle_radius
 from filters.surface.anisotropy import DEFAULTS, MAX_AXIS_H, anisotropic_kernels, kernel_axes
-from filters.surface.ellipsoids import (ANISOTROPIC_ISO, splat_ellipsoids_dense,
-                                        splat_ellipsoids_sparse)
+from filters.surface.ellipsoids import (
+    ANISOTROPIC_ISO,
+    splat_ellipsoids_dense,
+    splat_ellipsoids_sparse,
+)
 from filters.surface.grid import DenseField, SparseGrid
-from filters.surface.splat import (splat_dense, splat_dense_anisotropic, splat_sparse,
-                                   splat_sparse_anisotropic)
-from filters.surface.volumes import anisotropic_volumes
 from filters.surface.mesh import mesh_stats
+from filters.surface.splat import (
+    splat_dense,
+    splat_dense_anisotropic,
+    splat_sparse,
+    splat_sparse_anisotropic,
+)
+from filters.surface.volumes import anisotropic_volumes
 from pipeline.surface.contour import contour_dense, contour_sparse
 
 S = 0.02  # lattice spacing (m)
@@ -303,8 +310,8 @@ def test_metaball_splat_stage_exposes_anisotropic_kernels():
     """The VTK stage splats ellipsoids when asked and refuses kernels without an ellipsoid form."""
     import pyvista as pv
 
-    from pipeline.surface.contour import polydata_to_mesh
     from pipeline.surface import MarchingCubes, MetaballSplat
+    from pipeline.surface.contour import polydata_to_mesh
 
     rng = np.random.default_rng(3)
     axis = np.arange(12) * 0.02

@@ -241,10 +241,11 @@ def test_a_cut_through_a_point_where_two_pieces_touch_is_closed():
     """Two octahedra touching at one vertex that lies on a wall (as the liquid's surface can
     touch a tank wall at one point): the cut's boundary passes that vertex twice, two loops
     share it; both are capped and the result is closed with the exact half volumes."""
+    from vtkmodules.util import numpy_support
+
     from pipeline.algorithm import run_chain
     from pipeline.surface.contour import mesh_to_polydata
     from pipeline.surface.liquid import ClipBox
-    from vtkmodules.util import numpy_support
 
     pa, ta = _octahedron((0.0, -1.0, 0.0))
     pb, tb = _octahedron((0.0, 1.0, 0.0))

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from filters.surface.mesh import mesh_stats
 from filters.surface.smoothing import (
     feature_weights,
     smooth_surface,
@@ -10,7 +11,6 @@ from filters.surface.smoothing import (
     weighted_laplacian,
 )
 from filters.surface.splat import splat_sparse
-from filters.surface.mesh import mesh_stats
 from pipeline.surface.contour import contour_sparse
 
 S = 0.02  # lattice spacing (m)

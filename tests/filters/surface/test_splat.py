@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from filters.geometry import Plane, Sphere
-from filters.surface.csg import combine_dense, combine_sparse
-from filters.surface.grid import GridTooLargeError
 from filters.kernels import SPLAT_KERNELS as KERNELS
 from filters.kernels import lone_particle_radius
 from filters.surface.attributes import interpolate_attributes
-from filters.surface.splat import splat_dense, splat_sparse
+from filters.surface.csg import combine_dense, combine_sparse
+from filters.surface.grid import GridTooLargeError
 from filters.surface.mesh import merge_coincident, mesh_stats
+from filters.surface.splat import splat_dense, splat_sparse
 
 
 def _cloud(n=600, seed=1):
