@@ -44,8 +44,16 @@ def _find(indices, start, stop, col):
 @njit(cache=True)
 def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
     """Add (``write``) or look up the blocks ``w_a w_b H_j`` of every point ``j`` at the free
-    particles' rows and columns; returns False when the pattern lacks one."""
+    particles' rows and columns; returns False when the pattern lacks one.
+
+    One bisection per scalar row and block: the columns ``3 nb + q`` of a block are adjacent
+    in a row's sorted indices.  Writing skips the points whose Hessian is zero (those out of
+    contact: ``w * 0`` changes no entry).
+    """
     for j in range(nodes.shape[0]):
+        if write and (hess[j, 0] == 0.0 and hess[j, 1] == 0.0 and hess[j, 2] == 0.0
+                      and hess[j, 3] == 0.0 and hess[j, 4] == 0.0 and hess[j, 5] == 0.0):
+            continue
         for a in range(nodes.shape[1]):
             wa = weights[j, a]
             na = nodes[j, a]
@@ -59,15 +67,17 @@ def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
                 w = wa * wb
                 for r in range(3):
                     row = 3 * na + r
-                    for q in range(3):
-                        k = r * 3 + q
-                        e = hess[j, 0 if k == 0 else 1 if k in (1, 3) else 2 if k in (2, 6)
-                                 else 3 if k == 4 else 4 if k in (5, 7) else 5]
-                        p = _find(indices, indptr[row], indptr[row + 1], 3 * nb + q)
-                        if p < 0:
-                            return False
-                        if write:
-                            data[p] += w * e
+                    stop = indptr[row + 1]
+                    p = _find(indices, indptr[row], stop, 3 * nb)
+                    if p < 0 or p + 2 >= stop or indices[p + 1] != 3 * nb + 1 or (
+                            indices[p + 2] != 3 * nb + 2):
+                        return False
+                    if write:
+                        for q in range(3):
+                            k = r * 3 + q
+                            e = hess[j, 0 if k == 0 else 1 if k in (1, 3) else 2 if k in (2, 6)
+                                     else 3 if k == 4 else 4 if k in (5, 7) else 5]
+                            data[p + q] += w * e
     return True
 
 
@@ -96,8 +106,8 @@ def add_point_hessians_csr(matrix, nodes, weights, hess, pinned):
     mat = matrix.copy()
     if not mat.has_sorted_indices:
         mat.sort_indices()
-    indptr = mat.indptr.astype(np.int64)
-    indices = mat.indices.astype(np.int64)
+    indptr = mat.indptr
+    indices = mat.indices
     if not _csr_points(indptr, indices, mat.data, nodes, weights, hess, free, False):
         return None
     _csr_points(indptr, indices, mat.data, nodes, weights, hess, free, True)
