@@ -115,28 +115,45 @@ def add_point_hessians_csr(matrix, nodes, weights, hess, pinned):
 
 
 @njit(cache=True)
-def _pair_points(keys, order, n, blocks, nodes, weights, hess, write):
-    """Add (``write``) ``-w_a w_b H_j`` to the pair block of every two particles ``a < b`` of
-    every point ``j``; returns False when a pair is not one of the operator's."""
-    for j in range(nodes.shape[0]):
-        for a in range(nodes.shape[1]):
-            wa = weights[j, a]
-            if wa == 0.0:
-                continue
-            for b in range(a + 1, nodes.shape[1]):
-                wb = weights[j, b]
-                if wb == 0.0:
-                    continue
+def _pair_slots(keys, order, n, nodes):
+    """The operator pair of every two particles ``a < b`` of every point (``slots[j, a, b]``,
+    (M, K, K) int64): -1 where the two are one particle, -2 where the operator has no such
+    pair.  Found once by bisection in the sorted pair keys."""
+    m, k = nodes.shape
+    slots = np.full((m, k, k), -1, np.int64)
+    for j in range(m):
+        for a in range(k):
+            for b in range(a + 1, k):
                 lo = min(nodes[j, a], nodes[j, b])
                 hi = max(nodes[j, a], nodes[j, b])
                 if lo == hi:
                     continue
                 key = lo * n + hi
                 p = np.searchsorted(keys, key)
-                if p >= keys.shape[0] or keys[p] != key:
+                slots[j, a, b] = order[p] if p < keys.shape[0] and keys[p] == key else -2
+    return slots
+
+
+@njit(cache=True)
+def _pair_points(slots, blocks, weights, hess, write):
+    """Add (``write``) ``-w_a w_b H_j`` to the pair block of every two particles ``a < b`` of
+    every point ``j`` (their pairs ``slots``, :func:`_pair_slots`); returns False when a pair
+    with non-zero weights is not one of the operator's."""
+    for j in range(weights.shape[0]):
+        for a in range(weights.shape[1]):
+            wa = weights[j, a]
+            if wa == 0.0:
+                continue
+            for b in range(a + 1, weights.shape[1]):
+                wb = weights[j, b]
+                if wb == 0.0:
+                    continue
+                s = slots[j, a, b]
+                if s == -1:
+                    continue
+                if s == -2:
                     return False
                 if write:
-                    s = order[p]
                     w = wa * wb
                     for k in range(6):
                         blocks[s, k] -= w * hess[j, k]
@@ -154,10 +171,20 @@ def add_point_hessians_pairs(operator, nodes, weights, hess):
         Its ``blocks`` are changed in place.
     nodes, weights, hess
         As in :func:`add_point_hessians_csr`; the weights of a point sum to 1.
+
+    Notes
+    -----
+    The pairs of the points' particles are looked up once and kept on the operator with a copy
+    of ``nodes`` (found anew when the nodes change), so that a Newton iteration does no search.
     """
-    keys, order = operator.pair_lookup()
-    n = operator.diag.shape[0]
-    if not _pair_points(keys, order, n, operator.blocks, nodes, weights, hess, False):
+    cached = getattr(operator, "_point_slots", None)
+    if cached is None or not np.array_equal(cached[0], nodes):
+        keys, order = operator.pair_lookup()
+        slots = _pair_slots(keys, order, operator.diag.shape[0],
+                            np.ascontiguousarray(nodes, dtype=np.int64))
+        cached = operator._point_slots = (np.array(nodes, copy=True), slots)
+    slots = cached[1]
+    if not _pair_points(slots, operator.blocks, weights, hess, False):
         return False
-    _pair_points(keys, order, n, operator.blocks, nodes, weights, hess, True)
+    _pair_points(slots, operator.blocks, weights, hess, True)
     return True
