@@ -48,7 +48,7 @@ def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
 
     One bisection per scalar row and block: the columns ``3 nb + q`` of a block are adjacent
     in a row's sorted indices.  Writing skips the points whose Hessian is zero (those out of
-    contact: ``w * 0`` changes no entry).
+    contact: adding ``w * 0`` changes no entry, but for the sign of a zero).
     """
     for j in range(nodes.shape[0]):
         if write and (hess[j, 0] == 0.0 and hess[j, 1] == 0.0 and hess[j, 2] == 0.0
