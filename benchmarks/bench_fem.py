@@ -143,6 +143,38 @@ def implicit(size, steps):
     return out
 
 
+def profile(size="10k", steps=8):
+    """Where a FEM jello step's time goes: ``steps`` steps of each FEM model (after the
+    interleaved benchmark's first step) under :mod:`cProfile`, with each function's share of
+    the total (own time, so a Numba kernel's share is its work), the top 8; the spring jello
+    likewise.  Shares, not seconds: they hold on a busy machine."""
+    import cProfile
+    import pstats
+
+    models = _models(SPACINGS[size])
+    out = {}
+    for name, sim in models.items():
+        sim.step(H)
+        prof = cProfile.Profile()
+        newton = 0
+        prof.enable()
+        for _ in range(steps):
+            sim.step(H)
+            newton += sim.last_info.newton_iterations
+        prof.disable()
+        stats = pstats.Stats(prof).stats
+        total = sum(v[2] for v in stats.values())
+        top = sorted(stats.items(), key=lambda kv: -kv[1][2])[:8]
+        out[name] = dict(steps=steps, newton_iterations_mean=newton / steps,
+                         share_of_time={f"{Path(k[0]).name}:{k[2]}": round(v[2] / total, 3)
+                                        for k, v in top},
+                         calls_per_newton_iteration={f"{Path(k[0]).name}:{k[2]}":
+                                                     round(v[1] / max(newton, 1), 2)
+                                                     for k, v in top})
+        print(json.dumps({name: out[name]}), flush=True)
+    return out
+
+
 def _block(n):
     rng = np.random.default_rng(0)
     g = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), -1)
@@ -188,7 +220,9 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=20, help="implicit steps per model")
     parser.add_argument("--repeats", type=int, default=3, help="contouring repeats")
     parser.add_argument("--no-1m", action="store_true", help="skip the 1M block")
-    parser.add_argument("--only", choices=("implicit", "contour"), help="one part only")
+    parser.add_argument("--only", choices=("implicit", "contour", "profile"),
+                        help="one part only (profile: the FEM step's kernels, kept beside the "
+                             "earlier implicit and contouring rows)")
     args = parser.parse_args(argv)
     out = dict(machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                             numba_threads=numba.get_num_threads(),
@@ -199,6 +233,8 @@ def main(argv=None):
             for row in implicit(size, steps):
                 out["implicit"].append(row)
                 print(json.dumps(row), flush=True)
+    if args.only == "profile":
+        out["profile_10k"] = profile()
     if args.only in (None, "contour"):
         cases = ["block_100k"] if args.no_1m else ["block_100k", "block_1m"]
         for case in cases:
@@ -210,8 +246,12 @@ def main(argv=None):
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     if RESULTS.exists() and args.only:  # keep the other part of an earlier run
         previous = json.loads(RESULTS.read_text())
-        other = "contouring" if args.only == "implicit" else "implicit"
-        out[other] = previous.get(other, [])
+        for other in ("implicit", "contouring", "profile_10k"):
+            if not out.get(other):
+                out[other] = previous.get(other, [])
+        if args.only == "profile":  # the machine line stays the implicit rows'
+            out["profile_10k"]["machine"] = out["machine"]
+            out["machine"] = previous.get("machine", out["machine"])
     RESULTS.write_text(json.dumps(out, indent=1) + "\n")
     print(f"wrote {RESULTS}")
 

@@ -259,6 +259,99 @@ def explicit(n=64, frames=10, substeps=16, repeats=9):
     return results
 
 
+def _best_us(fn, repeats=30, inner=5):
+    """Best time (us) of ``fn`` over ``repeats`` blocks of ``inner`` calls (after one call)."""
+    fn()
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / inner)
+    return 1e6 * best
+
+
+def profile(sizes=(32, 64, 128), steps=3):
+    """Where an implicit step's time goes, and why the PCG iterations cannot go much faster.
+
+    Per cloth size: the default step's Newton and PCG iterations, and the best time of each
+    kernel of one Newton iteration on the state after ``steps`` steps: forces, the operator's
+    blocks, the SSOR set-up, one PCG iteration's product (``_ssor_apply``: a backward and a
+    forward sweep over the springs), the CSR-free product ``H p`` and the two sweeps alone;
+    then the sweeps' data (bytes a sweep reads and writes) against their time, next to a
+    streaming triad over the same number of bytes.  A sweep that costs the same nanoseconds
+    per particle at every size (its data in L1, L2 or beyond) is bound by the latency of the
+    Gauss-Seidel recurrence (particle ``i`` needs ``i + 1``'s result, summed in a fixed order
+    for the same bits), not by memory bandwidth.
+    """
+    from numba import njit
+
+    from filters.linalg import ssor as ssor_module
+    from filters.linalg.operator import block_matvec
+
+    @njit(cache=False)
+    def triad(a, b, c, s):
+        for i in range(a.shape[0]):
+            a[i] = b[i] + s * c[i]
+
+    rows = []
+    h = 1.0 / 60.0
+    for n in sizes:
+        top = _cloth(n)
+        rest = top.rest_lengths
+        system = SpringSystem(top.springs, rest, 1e4 * rest, np.full(n * n, MASS),
+                              pinned=top.pinned)
+        state = State(top.positions.copy())
+        info = None
+        newton, pcg = [], []
+        for _ in range(steps):
+            info = backward_euler(system, state, h)
+            newton.append(info.newton_iterations)
+            pcg.append(info.linear_iterations)
+        x = state.positions
+        op = system.implicit_operator(x, x, h)
+        work = ssor_module.SSORWorkspace().get(op.diag.shape[0], op.upper[1].shape[0])
+        dsc, dinv, _, t, qv, acc, w, r, pv, ax, res, acc6 = work
+        up_ptr, up_spring, up_other = op.upper
+        free, omega = op.free, ssor_module.DEFAULT_OMEGA
+        rhs = np.random.default_rng(0).standard_normal((n * n, 3))
+        f = np.empty_like(x)
+        ke, rl, dm = system._op_params
+        ns = op.pairs.shape[0]
+        kernels = dict(
+            forces=lambda: system.conservative_forces(x, f),
+            operator_blocks=lambda: system.implicit_operator(x, x, h),
+            ssor_setup=lambda: ssor_module._ssor_setup(free, op.blocks, op.diag, up_ptr,
+                                                       up_spring, up_other, omega, dsc, dinv,
+                                                       op.blocks, False, acc6),
+            pcg_iteration_product=lambda: ssor_module._ssor_apply(
+                up_ptr, up_other, op.blocks, dinv, free, omega, rhs, 0.5, pv, t, qv, acc, w),
+            forward_sweep=lambda: ssor_module._ssor_forward(up_ptr, up_other, op.blocks, dinv,
+                                                           free, rhs, t, acc),
+            backward_sweep=lambda: ssor_module._ssor_backward(up_ptr, up_other, op.blocks,
+                                                             dinv, free, rhs, t),
+            matvec=lambda: block_matvec(op.pairs, free, op.blocks, op.diag, rhs, res),
+        )
+        us = {name: _best_us(fn) for name, fn in kernels.items()}
+        # a sweep streams the blocks (6 float64) and other end (int64) of every spring, and per
+        # particle reads D'^-1 (9), its right-hand side (3) and writes its result (3)
+        sweep_bytes = ns * (6 * 8 + 8 + 8) + n * n * (9 + 3 + 3 + 3) * 8
+        m = sweep_bytes // 24
+        a, b, c = np.zeros(m), np.ones(m), np.ones(m)
+        triad_us = _best_us(lambda: triad(a, b, c, 0.5))
+        sweep_us = 0.5 * (us["forward_sweep"] + us["backward_sweep"])
+        rows.append(dict(
+            particles=n * n, springs=ns, newton_iterations_mean=float(np.mean(newton)),
+            pcg_iterations_mean=float(np.mean(pcg)), kernel_us_best=us,
+            pcg_iterations_floor_ms=1e-3 * float(np.mean(pcg)) * us["pcg_iteration_product"],
+            sweep_ns_per_particle=1e3 * sweep_us / (n * n),
+            sweep_ns_per_spring=1e3 * sweep_us / ns,
+            sweep_bytes=int(sweep_bytes), sweep_GB_per_s=sweep_bytes / (1e3 * sweep_us),
+            triad_same_bytes_GB_per_s=sweep_bytes / (1e3 * triad_us)))
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
 def main():
     limit = threadpool_limits(1) if threadpool_limits else None
     out = dict(machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
@@ -295,6 +388,7 @@ def main():
         for row in implicit(n, variants, steps, **kw):
             out["implicit"].append(row)
             print(json.dumps(row), flush=True)
+    out["implicit_profile"] = profile()
     out["before_commit_10d0909"] = BEFORE
     out["before_commit_be7fe6e"] = BEFORE_SSOR
     RESULTS.parent.mkdir(parents=True, exist_ok=True)

@@ -23,9 +23,11 @@ if TYPE_CHECKING:
 __all__ = [
     "EPS",
     "spring_force3",
+    "spring_forces_into",
     "symplectic_serial",
     "per_spring_forces",
     "total_forces",
+    "total_forces_serial",
     "symplectic_parallel",
     "elastic_energy_serial",
     "elastic_energy",
@@ -84,18 +86,97 @@ def _spring_force(xa, xb, va, vb, ke, rest, c, mode, out):
     out[2] = f2
 
 
-@njit(cache=True)
-def symplectic_serial(x, v, pairs, ke, rest, c, mode, masses, inv_mass, gravity, drag, h, f):
-    """Serial symplectic Euler step: scatter spring forces (no races on one thread), integrate."""
+#: Springs per work item of the parallel force kernels.
+FORCE_CHUNK = 2048
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, start, stop):
+    """Forces on end ``a`` of springs ``start:stop`` into ``buf[0:3, start:stop]`` (rows: the
+    force's components; rows 3-5 are scratch).
+
+    Two passes: the end-point differences are gathered into the rows of ``buf``, then the
+    forces computed from them in a contiguous loop without branches (selects), which the
+    compiler vectorises (square roots and divisions four at a time; ``error_model="numpy"``
+    drops the division-by-zero check, whose quotient is never selected).  Each force is the
+    operations of :func:`spring_force3` in the same order: the same bits.  ``pa``, ``pb``: the
+    springs' end points (S,) uint32 (no negative-index wrap-around).
+    """
+    d0 = buf[0]
+    d1 = buf[1]
+    d2 = buf[2]
+    w0 = buf[3]
+    w1 = buf[4]
+    w2 = buf[5]
+    for s in range(start, stop):
+        a = pa[s]
+        b = pb[s]
+        d0[s] = x[a, 0] - x[b, 0]
+        d1[s] = x[a, 1] - x[b, 1]
+        d2[s] = x[a, 2] - x[b, 2]
+        w0[s] = v[a, 0] - v[b, 0]
+        w1[s] = v[a, 1] - v[b, 1]
+        w2[s] = v[a, 2] - v[b, 2]
+    axial = mode == 0
+    relative = mode == 1
+    for s in range(start, stop):
+        r = rest[s]
+        k = ke[s]
+        cs = c[s]
+        e0 = d0[s]
+        e1 = d1[s]
+        e2 = d2[s]
+        q0 = w0[s]
+        q1 = w1[s]
+        q2 = w2[s]
+        l = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        inv = 1.0 / l  # inf or nan where l <= EPS: not selected below
+        u0 = e0 * inv
+        u1 = e1 * inv
+        u2 = e2 * inv
+        sc = -k * (l - r)
+        sa = sc - cs * (q0 * u0 + q1 * u1 + q2 * u2)
+        sc = sa if axial else sc
+        ok = l > EPS
+        f0 = 0.0 + sc * u0 if ok else 0.0
+        f1 = 0.0 + sc * u1 if ok else 0.0
+        f2 = 0.0 + sc * u2 if ok else 0.0
+        g0 = f0 - cs * q0
+        g1 = f1 - cs * q1
+        g2 = f2 - cs * q2
+        f0 = g0 if relative else f0
+        f1 = g1 if relative else f1
+        f2 = g2 if relative else f2
+        lin = r == 0.0  # a linear spring: relative damping in both modes
+        d0[s] = -k * e0 - cs * q0 if lin else f0
+        d1[s] = -k * e1 - cs * q1 if lin else f1
+        d2[s] = -k * e2 - cs * q2 if lin else f2
+
+
+@njit(cache=True, error_model="numpy")
+def symplectic_serial(x, v, pa, pb, ke, rest, c, mode, masses, inv_mass, gravity, drag, h, f,
+                      buf):
+    """Serial symplectic Euler step in place; returns the largest speed (m/s).
+
+    The springs' forces by :func:`spring_forces_into` (``buf`` (6, S) scratch), scattered in
+    spring order (no races on one thread): the same sums, bit for bit, as one fused loop.
+    """
     n = x.shape[0]
+    ns = pa.shape[0]
+    spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, 0, ns)
+    d0 = buf[0]
+    d1 = buf[1]
+    d2 = buf[2]
     for i in range(n):
         f[i, 0] = masses[i] * gravity[0] - drag * v[i, 0]
         f[i, 1] = masses[i] * gravity[1] - drag * v[i, 1]
         f[i, 2] = masses[i] * gravity[2] - drag * v[i, 2]
-    for s in range(pairs.shape[0]):
-        a = pairs[s, 0]
-        b = pairs[s, 1]
-        f0, f1, f2 = spring_force3(x[a], x[b], v[a], v[b], ke[s], rest[s], c[s], mode)
+    for s in range(ns):
+        a = pa[s]
+        b = pb[s]
+        f0 = d0[s]
+        f1 = d1[s]
+        f2 = d2[s]
         f[a, 0] += f0
         f[a, 1] += f1
         f[a, 2] += f2
@@ -123,57 +204,67 @@ def per_spring_forces(x, v, pairs, ke, rest, c, mode, fs):
 
 
 @njit(cache=True, inline="always")
-def _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2):
-    """``(a0, a1, a2) + sum of sign * fs[s]`` over the springs incident to particle ``i``."""
+def _add_incident_rows(buf, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2):
+    """``(a0, a1, a2) + sum of sign * buf[0:3, s]`` over the springs ``s`` incident to particle
+    ``i`` (in the incidence lists' fixed order)."""
     for p in range(inc_ptr[i], inc_ptr[i + 1]):
         s = inc_spring[p]
         sg = inc_sign[p]
-        a0 += sg * fs[s, 0]
-        a1 += sg * fs[s, 1]
-        a2 += sg * fs[s, 2]
+        a0 += sg * buf[0, s]
+        a1 += sg * buf[1, s]
+        a2 += sg * buf[2, s]
     return a0, a1, a2
 
 
-@njit(parallel=True, cache=True)
-def _gather(fs, inc_ptr, inc_spring, inc_sign, f):
-    """f[i] = sum over incident springs of sign * fs[s] (no races: one thread per particle)."""
-    for i in prange(f.shape[0]):
-        a0, a1, a2 = _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, 0.0, 0.0, 0.0)
+@njit(cache=True, error_model="numpy")
+def total_forces_serial(x, v, pa, pb, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign, masses,
+                        gravity, drag, buf, f):
+    """:func:`total_forces` on one thread (not a parallel region: its loops vectorise)."""
+    spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, 0, pa.shape[0])
+    for i in range(f.shape[0]):
+        a0 = masses[i] * gravity[0] - drag * v[i, 0]
+        a1 = masses[i] * gravity[1] - drag * v[i, 1]
+        a2 = masses[i] * gravity[2] - drag * v[i, 2]
+        a0, a1, a2 = _add_incident_rows(buf, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
         f[i, 0] = a0
         f[i, 1] = a1
         f[i, 2] = a2
 
 
-@njit(parallel=True, cache=True)
-def total_forces(x, v, pairs, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign, masses,
-                  gravity, drag, fs, f):
-    """Spring + gravity + drag forces on every particle into ``f`` (N, 3)."""
-    for s in prange(pairs.shape[0]):
-        _spring_force(x[pairs[s, 0]], x[pairs[s, 1]], v[pairs[s, 0]], v[pairs[s, 1]],
-                      ke[s], rest[s], c[s], mode, fs[s])
+@njit(parallel=True, cache=True, error_model="numpy")
+def total_forces(x, v, pa, pb, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign, masses,
+                 gravity, drag, buf, f):
+    """Spring + gravity + drag forces on every particle into ``f`` (N, 3); ``buf`` (6, S)
+    scratch (:func:`spring_forces_into`), gathered per particle in incidence order."""
+    ns = pa.shape[0]
+    for ch in prange((ns + FORCE_CHUNK - 1) // FORCE_CHUNK):
+        spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, ch * FORCE_CHUNK,
+                           min(ns, (ch + 1) * FORCE_CHUNK))
     for i in prange(f.shape[0]):
         a0 = masses[i] * gravity[0] - drag * v[i, 0]
         a1 = masses[i] * gravity[1] - drag * v[i, 1]
         a2 = masses[i] * gravity[2] - drag * v[i, 2]
-        a0, a1, a2 = _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
+        a0, a1, a2 = _add_incident_rows(buf, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
         f[i, 0] = a0
         f[i, 1] = a1
         f[i, 2] = a2
 
 
-@njit(parallel=True, cache=True)
-def symplectic_parallel(x, v, pairs, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign, masses,
-                       inv_mass, gravity, drag, h, fs):
-    """One symplectic Euler step in place: v += h f(x, v) / m; x += h v (pinned: inv_mass 0)."""
-    for s in prange(pairs.shape[0]):
-        _spring_force(x[pairs[s, 0]], x[pairs[s, 1]], v[pairs[s, 0]], v[pairs[s, 1]],
-                      ke[s], rest[s], c[s], mode, fs[s])
+@njit(parallel=True, cache=True, error_model="numpy")
+def symplectic_parallel(x, v, pa, pb, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign, masses,
+                        inv_mass, gravity, drag, h, buf):
+    """One symplectic Euler step in place: v += h f(x, v) / m; x += h v (pinned: inv_mass 0);
+    ``buf`` (6, S) scratch."""
+    ns = pa.shape[0]
+    for ch in prange((ns + FORCE_CHUNK - 1) // FORCE_CHUNK):
+        spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, ch * FORCE_CHUNK,
+                           min(ns, (ch + 1) * FORCE_CHUNK))
     vmax = 0.0
     for i in prange(x.shape[0]):
         a0 = masses[i] * gravity[0] - drag * v[i, 0]
         a1 = masses[i] * gravity[1] - drag * v[i, 1]
         a2 = masses[i] * gravity[2] - drag * v[i, 2]
-        a0, a1, a2 = _add_incident(fs, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
+        a0, a1, a2 = _add_incident_rows(buf, inc_ptr, inc_spring, inc_sign, i, a0, a1, a2)
         w = h * inv_mass[i]
         v[i, 0] += w * a0
         v[i, 1] += w * a1

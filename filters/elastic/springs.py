@@ -43,7 +43,8 @@ from ..validation import check_choice, check_finite_vector, check_points, check_
 from .spring_kernels import (assemble_system, elastic_energy,
                              elastic_energy_serial, incidence, jacobian_blocks, operator_coefficients,
                              operator_diagonal, per_spring_forces, point_energies,
-                             symplectic_parallel, symplectic_serial, total_forces)
+                             symplectic_parallel, symplectic_serial, total_forces,
+                             total_forces_serial)
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray
@@ -352,11 +353,13 @@ class SpringSystem(ImplicitSystem):
         self.inv_mass = np.where(pinned, 0.0, 1.0 / masses)
         self.ke = np.ascontiguousarray(effective_stiffness(self.stiffness, self.rest))
         self.inc_ptr, self.inc_spring, self.inc_sign, self.inc_other = incidence(self.pairs, n)
-        self._fs = np.empty((s, 3))
+        # per-spring forces (rows 0-2) and scratch of the force kernels
+        self._fbuf = np.empty((6, s))
+        # the springs' end points as uint32 (no negative-index wrap-around in the kernels)
+        self._pa, self._pb = (np.ascontiguousarray(pairs[:, k], dtype=np.uint32) for k in (0, 1))
         self._zero_c = np.zeros(s)
         self._zero_k = np.zeros(s)
         self._zero_g = np.zeros(3)
-        self._pairs32 = self.pairs.astype(np.int32)
         self._f_scratch = None
         self._pattern = None
         self._operator = None
@@ -367,10 +370,10 @@ class SpringSystem(ImplicitSystem):
     def _force_kernel(self, x, v, ke, c, mode, gravity, drag, f):
         """Spring + gravity + drag forces into ``f`` (per-spring forces gathered per particle:
         every particle's sum in a fixed order, which keeps the momentum test's round-off)."""
-        with _threads(self.pairs.shape[0]):
-            total_forces(x, v, self.pairs, ke, self.rest, c, mode, self.inc_ptr,
-                          self.inc_spring, self.inc_sign, self.masses, gravity, drag, self._fs,
-                          f)
+        kernel = (total_forces_serial if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS
+                  else total_forces)
+        kernel(x, v, self._pa, self._pb, ke, self.rest, c, mode, self.inc_ptr, self.inc_spring,
+               self.inc_sign, self.masses, gravity, drag, self._fbuf, f)
 
     def forces(self, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Total force (N) on every particle: springs, damping, gravity and drag, (N, 3)."""
@@ -445,12 +448,13 @@ class SpringSystem(ImplicitSystem):
         if self.pairs.shape[0] < PARALLEL_MIN_SPRINGS_EXPLICIT:
             if self._f_scratch is None:
                 self._f_scratch = np.empty((self.n_points, 3))
-            return symplectic_serial(x, v, self._pairs32, self.ke, self.rest, self.damping,
-                                      self.mode, self.masses, self.inv_mass, self.gravity,
-                                      self.drag, h, self._f_scratch)
-        return symplectic_parallel(x, v, self.pairs, self.ke, self.rest, self.damping, self.mode,
-                                  self.inc_ptr, self.inc_spring, self.inc_sign, self.masses,
-                                  self.inv_mass, self.gravity, self.drag, h, self._fs)
+            return symplectic_serial(x, v, self._pa, self._pb, self.ke, self.rest, self.damping,
+                                     self.mode, self.masses, self.inv_mass, self.gravity,
+                                     self.drag, h, self._f_scratch, self._fbuf)
+        return symplectic_parallel(x, v, self._pa, self._pb, self.ke, self.rest, self.damping,
+                                   self.mode, self.inc_ptr, self.inc_spring, self.inc_sign,
+                                   self.masses, self.inv_mass, self.gravity, self.drag, h,
+                                   self._fbuf)
 
     # -- implicit system --------------------------------------------------------------------
     def _build_pattern(self):

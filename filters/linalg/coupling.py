@@ -51,8 +51,16 @@ def _find(indices, start, stop, col):
 @njit(cache=True)
 def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
     """Add (``write``) or look up the blocks ``w_a w_b H_j`` of every point ``j`` at the free
-    particles' rows and columns; returns False when the pattern lacks one."""
+    particles' rows and columns; returns False when the pattern lacks one.
+
+    One bisection per scalar row and block: the columns ``3 nb + q`` of a block are adjacent
+    in a row's sorted indices.  Writing skips the points whose Hessian is zero (those out of
+    contact: adding ``w * 0`` changes no entry, but for the sign of a zero).
+    """
     for j in range(nodes.shape[0]):
+        if write and (hess[j, 0] == 0.0 and hess[j, 1] == 0.0 and hess[j, 2] == 0.0
+                      and hess[j, 3] == 0.0 and hess[j, 4] == 0.0 and hess[j, 5] == 0.0):
+            continue
         for a in range(nodes.shape[1]):
             wa = weights[j, a]
             na = nodes[j, a]
@@ -66,15 +74,17 @@ def _csr_points(indptr, indices, data, nodes, weights, hess, free, write):
                 w = wa * wb
                 for r in range(3):
                     row = 3 * na + r
-                    for q in range(3):
-                        k = r * 3 + q
-                        e = hess[j, 0 if k == 0 else 1 if k in (1, 3) else 2 if k in (2, 6)
-                                 else 3 if k == 4 else 4 if k in (5, 7) else 5]
-                        p = _find(indices, indptr[row], indptr[row + 1], 3 * nb + q)
-                        if p < 0:
-                            return False
-                        if write:
-                            data[p] += w * e
+                    stop = indptr[row + 1]
+                    p = _find(indices, indptr[row], stop, 3 * nb)
+                    if p < 0 or p + 2 >= stop or indices[p + 1] != 3 * nb + 1 or (
+                            indices[p + 2] != 3 * nb + 2):
+                        return False
+                    if write:
+                        for q in range(3):
+                            k = r * 3 + q
+                            e = hess[j, 0 if k == 0 else 1 if k in (1, 3) else 2 if k in (2, 6)
+                                     else 3 if k == 4 else 4 if k in (5, 7) else 5]
+                            data[p + q] += w * e
     return True
 
 
@@ -104,8 +114,8 @@ def add_point_hessians_csr(matrix: csr_matrix, nodes: np.ndarray, weights: np.nd
     mat = matrix.copy()
     if not mat.has_sorted_indices:
         mat.sort_indices()
-    indptr = mat.indptr.astype(np.int64)
-    indices = mat.indices.astype(np.int64)
+    indptr = mat.indptr
+    indices = mat.indices
     if not _csr_points(indptr, indices, mat.data, nodes, weights, hess, free, False):
         return None
     _csr_points(indptr, indices, mat.data, nodes, weights, hess, free, True)
@@ -113,28 +123,45 @@ def add_point_hessians_csr(matrix: csr_matrix, nodes: np.ndarray, weights: np.nd
 
 
 @njit(cache=True)
-def _pair_points(keys, order, n, blocks, nodes, weights, hess, write):
-    """Add (``write``) ``-w_a w_b H_j`` to the pair block of every two particles ``a < b`` of
-    every point ``j``; returns False when a pair is not one of the operator's."""
-    for j in range(nodes.shape[0]):
-        for a in range(nodes.shape[1]):
-            wa = weights[j, a]
-            if wa == 0.0:
-                continue
-            for b in range(a + 1, nodes.shape[1]):
-                wb = weights[j, b]
-                if wb == 0.0:
-                    continue
+def _pair_slots(keys, order, n, nodes):
+    """The operator pair of every two particles ``a < b`` of every point (``slots[j, a, b]``,
+    (M, K, K) int64): -1 where the two are one particle, -2 where the operator has no such
+    pair.  Found once by bisection in the sorted pair keys."""
+    m, k = nodes.shape
+    slots = np.full((m, k, k), -1, np.int64)
+    for j in range(m):
+        for a in range(k):
+            for b in range(a + 1, k):
                 lo = min(nodes[j, a], nodes[j, b])
                 hi = max(nodes[j, a], nodes[j, b])
                 if lo == hi:
                     continue
                 key = lo * n + hi
                 p = np.searchsorted(keys, key)
-                if p >= keys.shape[0] or keys[p] != key:
+                slots[j, a, b] = order[p] if p < keys.shape[0] and keys[p] == key else -2
+    return slots
+
+
+@njit(cache=True)
+def _pair_points(slots, blocks, weights, hess, write):
+    """Add (``write``) ``-w_a w_b H_j`` to the pair block of every two particles ``a < b`` of
+    every point ``j`` (their pairs ``slots``, :func:`_pair_slots`); returns False when a pair
+    with non-zero weights is not one of the operator's."""
+    for j in range(weights.shape[0]):
+        for a in range(weights.shape[1]):
+            wa = weights[j, a]
+            if wa == 0.0:
+                continue
+            for b in range(a + 1, weights.shape[1]):
+                wb = weights[j, b]
+                if wb == 0.0:
+                    continue
+                s = slots[j, a, b]
+                if s == -1:
+                    continue
+                if s == -2:
                     return False
                 if write:
-                    s = order[p]
                     w = wa * wb
                     for k in range(6):
                         blocks[s, k] -= w * hess[j, k]
@@ -153,10 +180,20 @@ def add_point_hessians_pairs(operator: BlockOperator, nodes: np.ndarray, weights
         Its ``blocks`` are changed in place.
     nodes, weights, hess
         As in :func:`add_point_hessians_csr`; the weights of a point sum to 1.
+
+    Notes
+    -----
+    The pairs of the points' particles are looked up once and kept on the operator with a copy
+    of ``nodes`` (found anew when the nodes change), so that a Newton iteration does no search.
     """
-    keys, order = operator.pair_lookup()
-    n = operator.diag.shape[0]
-    if not _pair_points(keys, order, n, operator.blocks, nodes, weights, hess, False):
+    cached = getattr(operator, "_point_slots", None)
+    if cached is None or not np.array_equal(cached[0], nodes):
+        keys, order = operator.pair_lookup()
+        slots = _pair_slots(keys, order, operator.diag.shape[0],
+                            np.ascontiguousarray(nodes, dtype=np.int64))
+        cached = operator._point_slots = (np.array(nodes, copy=True), slots)
+    slots = cached[1]
+    if not _pair_points(slots, operator.blocks, weights, hess, False):
         return False
-    _pair_points(keys, order, n, operator.blocks, nodes, weights, hess, True)
+    _pair_points(slots, operator.blocks, weights, hess, True)
     return True
