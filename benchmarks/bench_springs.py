@@ -50,10 +50,10 @@ except ImportError:  # pragma: no cover
 import numba  # noqa: E402
 
 from filters.elastic import springs as springs_module  # noqa: E402
-from filters.integrators import backward_euler, linearized_backward_euler  # noqa: E402
-from filters.simulation import State  # noqa: E402
 from filters.elastic.springs import SpringSystem  # noqa: E402
 from filters.elastic.topology import cloth_grid  # noqa: E402
+from filters.integrators import backward_euler, linearized_backward_euler  # noqa: E402
+from filters.simulation import State  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results" / "springs.json"
 

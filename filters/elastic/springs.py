@@ -1,4 +1,5 @@
-"""Damped springs: forces, energies and analytic 3x3 Jacobians, and a spring system for the integrators.
+"""Damped springs: forces, energies and analytic 3x3 Jacobians, and a spring system for the
+integrators.
 
 A spring joins particles ``a`` and ``b`` with rest length ``L`` and stiffness ``k``.  With
 ``d = x_a - x_b``, ``l = |d|`` and ``u = d / l`` the force on ``a`` is the seed's
@@ -34,17 +35,26 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-
 import numpy as np
 
-from .threads import serial_below
 from ..linalg import BlockOperator, ImplicitSystem
 from ..validation import check_choice, check_finite_vector, check_points, check_range
-from .spring_kernels import (assemble_system, elastic_energy,
-                             elastic_energy_serial, incidence, jacobian_blocks, operator_coefficients,
-                             operator_diagonal, per_spring_forces, point_energies,
-                             symplectic_parallel, symplectic_serial, total_forces,
-                             total_forces_serial)
+from .spring_kernels import (
+    assemble_system,
+    elastic_energy,
+    elastic_energy_serial,
+    incidence,
+    jacobian_blocks,
+    operator_coefficients,
+    operator_diagonal,
+    per_spring_forces,
+    point_energies,
+    symplectic_parallel,
+    symplectic_serial,
+    total_forces,
+    total_forces_serial,
+)
+from .threads import serial_below
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike, NDArray

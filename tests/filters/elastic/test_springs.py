@@ -3,8 +3,13 @@
 import numpy as np
 import pytest
 
-from filters.elastic.springs import (SpringSystem, effective_stiffness, spring_energy, spring_forces,
-                             spring_jacobians)
+from filters.elastic.springs import (
+    SpringSystem,
+    effective_stiffness,
+    spring_energy,
+    spring_forces,
+    spring_jacobians,
+)
 
 PAIRS = np.array([[0, 1], [1, 2], [2, 3], [3, 4], [0, 4], [1, 3]])
 
