@@ -377,9 +377,19 @@ class Simulation:
             dt = self.max_step()
             if remaining <= dt * (1.0 + 1e-9):
                 self.step(remaining)
-                self.state.time = time  # land exactly on the frame time: no drift
+                self._land_on(time)  # exactly on the frame time: no drift
                 break
+            if self.split_last_steps and remaining < 2.0 * dt:
+                dt = 0.5 * remaining
             self.step(dt)
+
+    #: Cross the time left in two equal steps where it is between one and two steps, so that no
+    #: last step is a sliver (solvers whose projection acts within the step they are given).
+    split_last_steps: bool = False
+
+    def _land_on(self, time: float) -> None:
+        """Set the state's time to ``time`` after the last, shortened step."""
+        self.state.time = time
 
     def check_finite(self) -> None:
         """Raise :class:`SimulationUnstableError` if positions or velocities are non-finite."""

@@ -269,25 +269,10 @@ class Coupled(Simulation):
             self.corrections += moved
         self._place()
 
-    def advance_to(self, time: float) -> None:
-        """Step forward until the time is ``time`` exactly, as
-        :meth:`filters.sph.SPHLiquid.advance_to` (no sliver of a last step)."""
-        time = float(time)
-        if not math.isfinite(time):
-            raise ValueError(f"time must be finite, got {time}")
-        if time < self.state.time - 1e-12:
-            raise ValueError(f"cannot advance backwards from t = {self.state.time} to "
-                             f"t = {time}; restore a saved state")
-        while self.state.time < time:
-            remaining = time - self.state.time
-            dt = self.max_step()
-            if remaining <= dt * (1.0 + 1e-9):
-                self.step(remaining)
-                self._set_time(time)
-                break
-            self.step(0.5 * remaining if remaining < 2.0 * dt else dt)
+    #: no sliver of a last step, as the liquid alone (:attr:`SPHLiquid.split_last_steps`)
+    split_last_steps = True
 
-    def _set_time(self, time: float) -> None:
+    def _land_on(self, time: float) -> None:
         self.liquid.state.time = time
         for part in self.parts:
             part.sim.state.time = time
