@@ -22,7 +22,7 @@ WALL_CLUSTERS = 4
 SAME_WALL_COS = 0.7
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def cell_range(q, origin, inv_cell, dim):
     """First and last cell index (clamped) within two cells of coordinate ``q``."""
     f = math.floor((q - origin) * inv_cell)
@@ -31,7 +31,7 @@ def cell_range(q, origin, inv_cell, dim):
     return int(lo), int(hi)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _gap(q, lo_edge, hi_edge):
     if q < lo_edge:
         return lo_edge - q
@@ -58,7 +58,7 @@ def boundary_reach_mask(xb, origin, cell, dims):
     return mask
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def wall_of(i, mx, my, mz, nc, cn):
     """The first of particle ``i``'s wall clusters 1 .. nc - 1 whose normal is within 45 degrees
     of ``(mx, my, mz)`` (either orientation; a zero normal matches a zero one), else ``nc``."""
@@ -75,209 +75,9 @@ def wall_of(i, mx, my, mz, nc, cn):
     return nc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _home(q, origin, inv_cell, dim):
     return min(max(int(math.floor((q - origin) * inv_cell)), 0), dim - 1)
-
-
-@njit(cache=True, error_model="numpy")
-def _particle(i, x, start, origin, cell, dims, xb, bstart, borigin, bcell, bdims, bmask, bvol,
-              bmass, bfvol, bnrm, bvel, moving, vol, mass, h, kind, ntab, ncnt, fw, gsum,
-              factor, nnb, rho, fsum, bvis, bvv, vrate, ncl, cphi, cgb, cvb, cn, best, cap,
-              kcap, h2, margin, eps, inv, binv, w0, nbd):
-    """The neighbourhood pass for particle ``i`` (:func:`neighbourhood_pass`).
-
-    A function of its own, called with an ``int64`` index (the parallel loop's own index is
-    unsigned and would compile it a second time), and its helpers plain calls that LLVM
-    inlines: Numba compiles the pass in 7 s on a cold cache, against 11-13 s with this body
-    inside the parallel loop and the helpers inlined by Numba (measured); run time and results
-    are the same, bit for bit."""
-    qx = x[i, 0]
-    qy = x[i, 1]
-    qz = x[i, 2]
-    # -- collect the fluid neighbours (branch-free compaction into the row) --------------
-    c = 0
-    x0, x1 = cell_range(qx, origin[0], inv, dims[0])
-    y0, y1 = cell_range(qy, origin[1], inv, dims[1])
-    z0, z1 = cell_range(qz, origin[2], inv, dims[2])
-    for iz in range(z0, z1 + 1):
-        gz = _gap(qz, origin[2] + iz * cell, origin[2] + (iz + 1) * cell)
-        for iy in range(y0, y1 + 1):
-            gy = _gap(qy, origin[1] + iy * cell, origin[1] + (iy + 1) * cell)
-            if gy * gy + gz * gz > margin:
-                continue
-            row = (iz * dims[1] + iy) * dims[0]
-            for j in range(start[row + x0], start[row + x1 + 1]):
-                dx = qx - x[j, 0]
-                dy = qy - x[j, 1]
-                dz = qz - x[j, 2]
-                ntab[i, min(c, cap)] = j
-                c += (dx * dx + dy * dy + dz * dz < h2) & (j != i)
-    best[i] = c
-    c = min(c, cap)
-    ncnt[i] = c
-    # -- kernels on the hits ---------------------------------------------------------------
-    sw = w0
-    sx = 0.0
-    sy = 0.0
-    sz = 0.0
-    sq = 0.0
-    sf = 0.0
-    for k in range(c):
-        j = ntab[i, k]
-        dx = qx - x[j, 0]
-        dy = qy - x[j, 1]
-        dz = qz - x[j, 2]
-        r2 = dx * dx + dy * dy + dz * dz
-        r = math.sqrt(r2)
-        w, dw = kernel_w_dw(kind, r, h)
-        sw += w
-        f = vol * dw / r if r > 0.0 else 0.0  # coincident: no gradient
-        f32 = np.float32(f)
-        fw[i, k] = f32
-        f = np.float64(f32)  # the sums below use what the solves will use
-        gx = f * dx
-        gy = f * dy
-        gz = f * dz
-        sx += gx
-        sy += gy
-        sz += gz
-        sq += gx * gx + gy * gy + gz * gz
-        sf += f
-    fsum[i] = sf
-    # -- boundary particles (only where the mask says some are within reach) --------------
-    bx = 0.0
-    by = 0.0
-    bz = 0.0
-    sb = 0.0
-    pb = 0.0
-    vr = 0.0
-    nb = 0
-    nc = 1
-    lk = 0
-    lx = math.nan  # no last normal yet (NaN equals nothing)
-    ly = math.nan
-    lz = math.nan
-    u0 = 0.0
-    u1 = 0.0
-    u2 = 0.0
-    u3 = 0.0
-    u4 = 0.0
-    u5 = 0.0
-    e0 = 0.0
-    e1 = 0.0
-    e2 = 0.0
-    home = (_home(qz, borigin[2], binv, bdims[2]) * bdims[1]
-            + _home(qy, borigin[1], binv, bdims[1])) * bdims[0] + _home(
-                qx, borigin[0], binv, bdims[0])
-    if nbd > 0 and bmask[home]:
-        x0, x1 = cell_range(qx, borigin[0], binv, bdims[0])
-        y0, y1 = cell_range(qy, borigin[1], binv, bdims[1])
-        z0, z1 = cell_range(qz, borigin[2], binv, bdims[2])
-        for iz in range(z0, z1 + 1):
-            gz = _gap(qz, borigin[2] + iz * bcell, borigin[2] + (iz + 1) * bcell)
-            for iy in range(y0, y1 + 1):
-                gy = _gap(qy, borigin[1] + iy * bcell, borigin[1] + (iy + 1) * bcell)
-                if gy * gy + gz * gz > margin:
-                    continue
-                row = (iz * bdims[1] + iy) * bdims[0]
-                for b in range(bstart[row + x0], bstart[row + x1 + 1]):
-                    dx = qx - xb[b, 0]
-                    dy = qy - xb[b, 1]
-                    dz = qz - xb[b, 2]
-                    r2 = dx * dx + dy * dy + dz * dz
-                    if r2 >= h2:
-                        continue
-                    r = math.sqrt(r2)
-                    w, dw = kernel_w_dw(kind, r, h)
-                    sb += bmass[b] * w
-                    pw = bvol[b] * w
-                    pb += pw
-                    f = bvol[b] * dw / r if r2 > 0.0 else 0.0
-                    tx = f * dx
-                    ty = f * dy
-                    tz = f * dz
-                    bx += tx
-                    by += ty
-                    bz += tz
-                    vg = 0.0
-                    if moving:
-                        vg = bvel[b, 0] * tx + bvel[b, 1] * ty + bvel[b, 2] * tz
-                        vr += vg
-                    # the wall this particle belongs to (as the last one's, if the same normal)
-                    mx = bnrm[b, 0]
-                    my = bnrm[b, 1]
-                    mz = bnrm[b, 2]
-                    if mx == lx and my == ly and mz == lz:
-                        k = lk
-                    else:
-                        k = wall_of(i, mx, my, mz, nc, cn)
-                        if k == nc:
-                            if nc < kcap:
-                                nc += 1
-                                cn[i, k, 0] = mx
-                                cn[i, k, 1] = my
-                                cn[i, k, 2] = mz
-                                cphi[i, k] = 0.0
-                                cgb[i, k, 0] = 0.0
-                                cgb[i, k, 1] = 0.0
-                                cgb[i, k, 2] = 0.0
-                                cvb[i, k] = 0.0
-                            else:
-                                k = nc - 1
-                        lk = k
-                        lx = mx
-                        ly = my
-                        lz = mz
-                    cphi[i, k] += pw
-                    cgb[i, k, 0] += tx
-                    cgb[i, k, 1] += ty
-                    cgb[i, k, 2] += tz
-                    cvb[i, k] += vg
-                    if r2 == 0.0:
-                        continue
-                    nb += 1
-                    q = bfvol[b] * dw / r / (r2 + eps)
-                    u0 += q * dx * dx
-                    u1 += q * dy * dy
-                    u2 += q * dz * dz
-                    u3 += q * dx * dy
-                    u4 += q * dx * dz
-                    u5 += q * dy * dz
-                    if moving:
-                        qv = q * (bvel[b, 0] * dx + bvel[b, 1] * dy + bvel[b, 2] * dz)
-                        e0 += qv * dx
-                        e1 += qv * dy
-                        e2 += qv * dz
-    bvis[i, 0] = u0
-    bvis[i, 1] = u1
-    bvis[i, 2] = u2
-    bvis[i, 3] = u3
-    bvis[i, 4] = u4
-    bvis[i, 5] = u5
-    bvv[i, 0] = e0
-    bvv[i, 1] = e1
-    bvv[i, 2] = e2
-    vrate[i] = vr
-    ncl[i] = nc if pb > 0.0 else 0
-    cphi[i, 0] = pb
-    cgb[i, 0, 0] = bx
-    cgb[i, 0, 1] = by
-    cgb[i, 0, 2] = bz
-    cvb[i, 0] = vr
-    cn[i, 0, 0] = 0.0
-    cn[i, 0, 1] = 0.0
-    cn[i, 0, 2] = 0.0
-    nnb[i] = c + nb
-    rho[i] = mass * sw + sb
-    sx += bx
-    sy += by
-    sz += bz
-    gsum[i, 0] = sx
-    gsum[i, 1] = sy
-    gsum[i, 2] = sz
-    den = sx * sx + sy * sy + sz * sz + sq
-    factor[i] = 1.0 / den if den > 1e-9 / h2 else 0.0
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -335,11 +135,192 @@ def neighbourhood_pass(x, start, origin, cell, dims, boundary, vol, mass, h, kin
     best = np.zeros(n, dtype=np.int64)
     nbd = xb.shape[0]
     for i in prange(n):
-        _particle(np.int64(i), x, start, origin, cell, dims, xb, bstart, borigin, bcell, bdims,
-                  bmask, bvol, bmass, bfvol, bnrm, bvel, moving, vol, mass, h, kind,
-                  ntab, ncnt, fw, gsum, factor, nnb, rho, fsum, bvis, bvv, vrate, ncl,
-                  cphi, cgb, cvb, cn, best, cap, kcap, h2, margin, eps, inv, binv, w0,
-                  nbd)
+        qx = x[i, 0]
+        qy = x[i, 1]
+        qz = x[i, 2]
+        # -- collect the fluid neighbours (branch-free compaction into the row) --------------
+        c = 0
+        x0, x1 = cell_range(qx, origin[0], inv, dims[0])
+        y0, y1 = cell_range(qy, origin[1], inv, dims[1])
+        z0, z1 = cell_range(qz, origin[2], inv, dims[2])
+        for iz in range(z0, z1 + 1):
+            gz = _gap(qz, origin[2] + iz * cell, origin[2] + (iz + 1) * cell)
+            for iy in range(y0, y1 + 1):
+                gy = _gap(qy, origin[1] + iy * cell, origin[1] + (iy + 1) * cell)
+                if gy * gy + gz * gz > margin:
+                    continue
+                row = (iz * dims[1] + iy) * dims[0]
+                for j in range(start[row + x0], start[row + x1 + 1]):
+                    dx = qx - x[j, 0]
+                    dy = qy - x[j, 1]
+                    dz = qz - x[j, 2]
+                    ntab[i, min(c, cap)] = j
+                    c += (dx * dx + dy * dy + dz * dz < h2) & (j != i)
+        best[i] = c
+        c = min(c, cap)
+        ncnt[i] = c
+        # -- kernels on the hits ---------------------------------------------------------------
+        sw = w0
+        sx = 0.0
+        sy = 0.0
+        sz = 0.0
+        sq = 0.0
+        sf = 0.0
+        for k in range(c):
+            j = ntab[i, k]
+            dx = qx - x[j, 0]
+            dy = qy - x[j, 1]
+            dz = qz - x[j, 2]
+            r2 = dx * dx + dy * dy + dz * dz
+            r = math.sqrt(r2)
+            w, dw = kernel_w_dw(kind, r, h)
+            sw += w
+            f = vol * dw / r if r > 0.0 else 0.0  # coincident: no gradient
+            f32 = np.float32(f)
+            fw[i, k] = f32
+            f = np.float64(f32)  # the sums below use what the solves will use
+            gx = f * dx
+            gy = f * dy
+            gz = f * dz
+            sx += gx
+            sy += gy
+            sz += gz
+            sq += gx * gx + gy * gy + gz * gz
+            sf += f
+        fsum[i] = sf
+        # -- boundary particles (only where the mask says some are within reach) --------------
+        bx = 0.0
+        by = 0.0
+        bz = 0.0
+        sb = 0.0
+        pb = 0.0
+        vr = 0.0
+        nb = 0
+        nc = 1
+        lk = 0
+        lx = math.nan  # no last normal yet (NaN equals nothing)
+        ly = math.nan
+        lz = math.nan
+        u0 = 0.0
+        u1 = 0.0
+        u2 = 0.0
+        u3 = 0.0
+        u4 = 0.0
+        u5 = 0.0
+        e0 = 0.0
+        e1 = 0.0
+        e2 = 0.0
+        home = (_home(qz, borigin[2], binv, bdims[2]) * bdims[1]
+                + _home(qy, borigin[1], binv, bdims[1])) * bdims[0] + _home(
+                    qx, borigin[0], binv, bdims[0])
+        if nbd > 0 and bmask[home]:
+            x0, x1 = cell_range(qx, borigin[0], binv, bdims[0])
+            y0, y1 = cell_range(qy, borigin[1], binv, bdims[1])
+            z0, z1 = cell_range(qz, borigin[2], binv, bdims[2])
+            for iz in range(z0, z1 + 1):
+                gz = _gap(qz, borigin[2] + iz * bcell, borigin[2] + (iz + 1) * bcell)
+                for iy in range(y0, y1 + 1):
+                    gy = _gap(qy, borigin[1] + iy * bcell, borigin[1] + (iy + 1) * bcell)
+                    if gy * gy + gz * gz > margin:
+                        continue
+                    row = (iz * bdims[1] + iy) * bdims[0]
+                    for b in range(bstart[row + x0], bstart[row + x1 + 1]):
+                        dx = qx - xb[b, 0]
+                        dy = qy - xb[b, 1]
+                        dz = qz - xb[b, 2]
+                        r2 = dx * dx + dy * dy + dz * dz
+                        if r2 >= h2:
+                            continue
+                        r = math.sqrt(r2)
+                        w, dw = kernel_w_dw(kind, r, h)
+                        sb += bmass[b] * w
+                        pw = bvol[b] * w
+                        pb += pw
+                        f = bvol[b] * dw / r if r2 > 0.0 else 0.0
+                        tx = f * dx
+                        ty = f * dy
+                        tz = f * dz
+                        bx += tx
+                        by += ty
+                        bz += tz
+                        vg = 0.0
+                        if moving:
+                            vg = bvel[b, 0] * tx + bvel[b, 1] * ty + bvel[b, 2] * tz
+                            vr += vg
+                        # the wall this particle belongs to (as the last one's, if the same normal)
+                        mx = bnrm[b, 0]
+                        my = bnrm[b, 1]
+                        mz = bnrm[b, 2]
+                        if mx == lx and my == ly and mz == lz:
+                            k = lk
+                        else:
+                            k = wall_of(i, mx, my, mz, nc, cn)
+                            if k == nc:
+                                if nc < kcap:
+                                    nc += 1
+                                    cn[i, k, 0] = mx
+                                    cn[i, k, 1] = my
+                                    cn[i, k, 2] = mz
+                                    cphi[i, k] = 0.0
+                                    cgb[i, k, 0] = 0.0
+                                    cgb[i, k, 1] = 0.0
+                                    cgb[i, k, 2] = 0.0
+                                    cvb[i, k] = 0.0
+                                else:
+                                    k = nc - 1
+                            lk = k
+                            lx = mx
+                            ly = my
+                            lz = mz
+                        cphi[i, k] += pw
+                        cgb[i, k, 0] += tx
+                        cgb[i, k, 1] += ty
+                        cgb[i, k, 2] += tz
+                        cvb[i, k] += vg
+                        if r2 == 0.0:
+                            continue
+                        nb += 1
+                        q = bfvol[b] * dw / r / (r2 + eps)
+                        u0 += q * dx * dx
+                        u1 += q * dy * dy
+                        u2 += q * dz * dz
+                        u3 += q * dx * dy
+                        u4 += q * dx * dz
+                        u5 += q * dy * dz
+                        if moving:
+                            qv = q * (bvel[b, 0] * dx + bvel[b, 1] * dy + bvel[b, 2] * dz)
+                            e0 += qv * dx
+                            e1 += qv * dy
+                            e2 += qv * dz
+        bvis[i, 0] = u0
+        bvis[i, 1] = u1
+        bvis[i, 2] = u2
+        bvis[i, 3] = u3
+        bvis[i, 4] = u4
+        bvis[i, 5] = u5
+        bvv[i, 0] = e0
+        bvv[i, 1] = e1
+        bvv[i, 2] = e2
+        vrate[i] = vr
+        ncl[i] = nc if pb > 0.0 else 0
+        cphi[i, 0] = pb
+        cgb[i, 0, 0] = bx
+        cgb[i, 0, 1] = by
+        cgb[i, 0, 2] = bz
+        cvb[i, 0] = vr
+        cn[i, 0, 0] = 0.0
+        cn[i, 0, 1] = 0.0
+        cn[i, 0, 2] = 0.0
+        nnb[i] = c + nb
+        rho[i] = mass * sw + sb
+        sx += bx
+        sy += by
+        sz += bz
+        gsum[i, 0] = sx
+        gsum[i, 1] = sy
+        gsum[i, 2] = sz
+        den = sx * sx + sy * sy + sz * sz + sq
+        factor[i] = 1.0 / den if den > 1e-9 / h2 else 0.0
     top = 0
     for i in range(n):
         top = max(top, best[i])
