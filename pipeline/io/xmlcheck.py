@@ -502,6 +502,19 @@ def _decompress(checker: _Checker, compressor: str, data: bytes, expected: int, 
         checker.fail(f"array {name!r}'s last compressed block is damaged ({exc})")
 
 
+def _lz4_count(data: bytes, i: int, count: int) -> tuple[int, int]:
+    """A literal or match length of an LZ4 sequence: the token's 4-bit ``count``, and when it
+    is 15, the bytes from ``data[i]`` added while they are 255; returns it and the next index."""
+    if count == 15:
+        while True:
+            extra = data[i]
+            i += 1
+            count += extra
+            if extra != 255:
+                break
+    return count, i
+
+
 def _lz4_block(data: bytes, limit: int) -> bytes:
     """Decode one LZ4 block (the block format, no frame), at most ``limit`` bytes out."""
     out = bytearray()
@@ -509,14 +522,7 @@ def _lz4_block(data: bytes, limit: int) -> bytes:
     while i < n:
         token = data[i]
         i += 1
-        length = token >> 4
-        if length == 15:
-            while True:
-                extra = data[i]
-                i += 1
-                length += extra
-                if extra != 255:
-                    break
+        length, i = _lz4_count(data, i, token >> 4)
         out += data[i:i + length]
         i += length
         if len(out) > limit:
@@ -527,14 +533,8 @@ def _lz4_block(data: bytes, limit: int) -> bytes:
         i += 2
         if offset == 0 or offset > len(out):
             raise ValueError("bad match offset")
-        match = (token & 15) + 4
-        if match == 19:
-            while True:
-                extra = data[i]
-                i += 1
-                match += extra
-                if extra != 255:
-                    break
+        match, i = _lz4_count(data, i, token & 15)
+        match += 4
         if len(out) + match > limit:
             raise ValueError("block larger than declared")
         for _ in range(match):  # overlapping copies repeat the bytes just written
