@@ -9,12 +9,15 @@ measured (:mod:`filters.sph.martin_moyce`) and compared with Martin & Moyce's Ta
 * three resolutions: ``a / 10``, ``a / 25`` (the scene's 4 mm) and ``a / 50``;
 * two set-ups: **full depth** (the tank ``a`` deep, as the scene) and **quasi-2D** (four
   particles deep between free-slip side walls, as the experiment's two-dimensional flow);
-* with the scene's wall friction (no-slip walls with the liquid's kinematic viscosity, 4e-4
-  m^2/s) and without (every wall free-slip; the liquid keeps its viscosity).
+* three wall frictions (the scene's ``wall_friction``): ``all`` (the scene's default: every
+  face no-slip with the liquid's kinematic viscosity, 4e-4 m^2/s), ``floor`` (the floor
+  no-slip, the walls free-slip) and ``none`` (every face free-slip; the liquid keeps its
+  viscosity).  Quasi-2D side walls are free-slip whatever the friction.
 
 Run (heavy: the ``a / 50`` full-depth column has 250,000 particles)::
 
     python benchmarks/bench_dam_break_validation.py [--divisors 10 25 50] [--setups full quasi2d]
+        [--friction all floor none] [--merge OTHER.json ...] [--no-run]
 
 Writes ``benchmarks/results/dam_break_validation.json`` (per case: signed and mean absolute
 errors at every table point, particles, steps, wall time, container corrections).
@@ -36,8 +39,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from filters.sph.martin_moyce import column_height, compare, surge_front  # noqa: E402
+from filters.sph.martin_moyce import (  # noqa: E402
+    FRONT_T,
+    FRONT_Z,
+    column_height,
+    compare,
+    release_delay,
+    surge_front,
+)
 from filters.sph.scenarios import dam_break_liquid  # noqa: E402
+from scenes.dam_break import WALL_FRICTION  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results" / "dam_break_validation.json"
 A = 0.1  # m, the dam_break scene's column width
@@ -48,10 +59,12 @@ SCENE = dict(kinematic_viscosity=4e-4, solver="dfsph", max_density_error=0.001,
              max_iterations=100, cfl=0.4, max_dt=0.005)
 
 
-def run_case(divisor: int, setup: str, friction: bool) -> dict:
+def run_case(divisor: int, setup: str, friction: str) -> dict:
     spacing = round(A / divisor, 9)
     depth = A if setup == "full" else 4 * spacing
-    slip = ("x", "y", "z") if not friction else ("y",) if setup == "quasi2d" else ()
+    slip = WALL_FRICTION[friction]
+    if setup == "quasi2d" and "y" not in slip:
+        slip = slip + ("y",)
     sim = dam_break_liquid(column_width=A, column_height=2 * A, tank_length=4 * A, depth=depth,
                            tank_height=3 * A, spacing=spacing, free_slip=slip, **SCENE)
     scale = math.sqrt(2.0 * G / A)
@@ -66,6 +79,7 @@ def run_case(divisor: int, setup: str, friction: bool) -> dict:
         heights.append(column_height(sim.state.positions, spacing, depth))
     wall = time.perf_counter() - t0
     result = compare(times, fronts, heights, A, G, (0.8, T_END))
+    _add_delay(result, times, fronts)
     result.update(divisor=divisor, spacing_m=spacing, setup=setup, friction=friction,
                   particles=int(sim.state.n_points), steps=int(sim.steps_taken),
                   wall_s=round(wall, 1),
@@ -76,31 +90,63 @@ def run_case(divisor: int, setup: str, friction: bool) -> dict:
     return result
 
 
+def _add_delay(case: dict, times, fronts) -> None:
+    """What the front's error is made of: the release delay that best explains it (see
+    :func:`filters.sph.martin_moyce.release_delay`) and the front's late speed, ``dZ / dT``
+    from ``T`` = 1.98 to 2.98 over Table 2's (a front that left early but runs at the
+    experiment's speed has a ratio of 1)."""
+    delay, err = release_delay(times, fronts, A, G, (0.8, T_END))
+    T = np.asarray(times) * math.sqrt(2.0 * G / A)
+    late = [6, 12]  # Table 2's points at T = 1.98 and 2.98
+    z = np.interp(FRONT_T[late], T, np.asarray(fronts) / A)
+    ratio = float((z[1] - z[0]) / (FRONT_Z[12] - FRONT_Z[6]))
+    case.update(release_delay_T=delay, front_mean_abs_after_delay=err,
+                front_late_speed_ratio=ratio)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--divisors", type=int, nargs="+", default=[10, 25, 50],
                         help="resolutions a / d (default 10 25 50)")
     parser.add_argument("--setups", nargs="+", default=["full", "quasi2d"],
                         choices=["full", "quasi2d"])
-    parser.add_argument("--friction", nargs="+", default=["on", "off"], choices=["on", "off"])
+    parser.add_argument("--friction", nargs="+", default=list(WALL_FRICTION),
+                        choices=list(WALL_FRICTION))
+    parser.add_argument("--merge", metavar="JSON", nargs="+", default=[],
+                        help="take the cases of these results files (runs made elsewhere)")
+    parser.add_argument("--no-run", action="store_true",
+                        help="run nothing: rewrite the results (merged, figures recomputed)")
     args = parser.parse_args(argv)
     if min(args.divisors) < 4:
         parser.error("--divisors must be >= 4")
     old = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    cases = {c["key"]: c for c in old.get("cases", [])}
-    for setup in args.setups:
+    for path in args.merge:
+        old.setdefault("cases", []).extend(json.loads(Path(path).read_text())["cases"])
+    cases = {}
+    for c in old.get("cases", []):  # results from before the floor-only friction: on / off
+        if isinstance(c["friction"], bool):
+            c["friction"] = "all" if c["friction"] else "none"
+            c["key"] = f"{c['setup']}_a{c['divisor']}_friction_{c['friction']}"
+        if "front_late_speed_ratio" not in c:  # from the stored samples, no rerun
+            scale = math.sqrt(2.0 * G / A)
+            _add_delay(c, np.asarray(c["T"]) / scale, np.asarray(c["front_Z"]) * A)
+        cases[c["key"]] = c
+    for setup in args.setups if not args.no_run else []:
         for friction in args.friction:
             for d in args.divisors:
                 key = f"{setup}_a{d}_friction_{friction}"
                 print(f"--- {key}", flush=True)
-                case = run_case(d, setup, friction == "on")
+                case = run_case(d, setup, friction)
                 case["key"] = key
                 cases[key] = case
                 print(f"front mean |error| {100 * case['front_mean_abs']:.1f} % (signed "
                       f"{100 * case['front_mean']:+.1f} %), height "
                       f"{100 * case['height_mean_abs']:.1f}"
                       f" % ({100 * case['height_mean']:+.1f} %); {case['particles']} particles, "
-                      f"{case['steps']} steps, {case['wall_s']} s, "
+                      f"{case['steps']} steps, {case['wall_s']} s, front "
+                      f"{100 * case['front_mean_abs_after_delay']:.1f} % after a release delay "
+                      f"of {case['release_delay_T']:.2f} in T, late speed "
+                      f"{case['front_late_speed_ratio']:.3f} of the experiment's, "
                       f"{case['container_corrections']} container corrections", flush=True)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps({
