@@ -79,7 +79,7 @@ def run_case(divisor: int, setup: str, friction: str) -> dict:
         heights.append(column_height(sim.state.positions, spacing, depth))
     wall = time.perf_counter() - t0
     result = compare(times, fronts, heights, A, G, (0.8, T_END))
-    _add_delay(result, times, fronts)
+    _add_front_diagnostics(result, times, fronts)
     result.update(divisor=divisor, spacing_m=spacing, setup=setup, friction=friction,
                   particles=int(sim.state.n_points), steps=int(sim.steps_taken),
                   wall_s=round(wall, 1),
@@ -90,7 +90,7 @@ def run_case(divisor: int, setup: str, friction: str) -> dict:
     return result
 
 
-def _add_delay(case: dict, times, fronts) -> None:
+def _add_front_diagnostics(case: dict, times, fronts) -> None:
     """What the front's error is made of: the release delay that best explains it (see
     :func:`filters.sph.martin_moyce.release_delay`) and the front's late speed, ``dZ / dT``
     from ``T`` = 1.98 to 2.98 over Table 2's (a front that left early but runs at the
@@ -123,13 +123,13 @@ def main(argv=None) -> int:
     for path in args.merge:
         old.setdefault("cases", []).extend(json.loads(Path(path).read_text())["cases"])
     cases = {}
-    for c in old.get("cases", []):  # results from before the floor-only friction: on / off
+    for c in old.get("cases", []):  # results from before wall_friction named them: on / off
         if isinstance(c["friction"], bool):
             c["friction"] = "all" if c["friction"] else "none"
             c["key"] = f"{c['setup']}_a{c['divisor']}_friction_{c['friction']}"
         if "front_late_speed_ratio" not in c:  # from the stored samples, no rerun
             scale = math.sqrt(2.0 * G / A)
-            _add_delay(c, np.asarray(c["T"]) / scale, np.asarray(c["front_Z"]) * A)
+            _add_front_diagnostics(c, np.asarray(c["T"]) / scale, np.asarray(c["front_Z"]) * A)
         cases[c["key"]] = c
     for setup in args.setups if not args.no_run else []:
         for friction in args.friction:
