@@ -145,6 +145,9 @@ class DFSPHStepper:
         for name in ("pi", "kappa_v", "pressure"):
             if s.extra.get(name) is None or s.extra[name].shape != (n,):
                 s.extra[name] = np.zeros(n)  # e.g. a state written by a WCSPH run
+        # the step makes a record of its own: copying the last one out of the work arrays
+        # that the pass is about to overwrite would be wasted (a few % of a step)
+        self.record = None
         rho = self.neighbourhood(liquid)
         liquid.note_density(rho)
         mean_err = liquid.mean_density_error

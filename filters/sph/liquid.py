@@ -435,7 +435,7 @@ class SPHLiquid(Simulation):
         Returns
         -------
         (K, 3) float64
-            Zeros before the first step.
+            Zeros before the first step and after a step that raised.
         """
         if self.model.solver != "dfsph":
             raise ValueError("boundary_forces needs solver='dfsph'")

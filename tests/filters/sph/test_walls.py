@@ -107,6 +107,21 @@ def test_pressure_forces_on_the_boundary_balance_the_fluids_momentum():
     np.testing.assert_allclose(force, expected, atol=1e-9 * weight)
 
 
+def test_boundary_forces_are_the_last_steps_after_a_density_evaluation():
+    """A frame's density pass re-sorts the particles and overwrites the work arrays the
+    record of the last step borrows: the forces asked for afterwards are still that step's."""
+    sim = _scene_liquid(spacing=0.01)
+    for _ in range(40):
+        sim.step(sim.max_step())
+    forces = sim.boundary_forces()
+    assert np.abs(forces).max() > 0.0
+    sim.state.positions[:] += 0.2 * sim.model.spacing  # the pass then sees another state
+    sim.evaluate_density()
+    np.testing.assert_array_equal(sim.boundary_forces(), forces)
+    sim.step(sim.max_step())
+    assert not np.array_equal(sim.boundary_forces(), forces)
+
+
 def test_viscous_forces_on_the_boundary_balance_the_fluids_momentum():
     """With the scene's viscosity the balance holds to the implicit viscosity solve's
     tolerance (its residual is not momentum-free)."""
