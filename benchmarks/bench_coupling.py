@@ -6,8 +6,9 @@ Archimedes draft (the heavy one on the floor), against the same tank holding the
 water particles and no body (a pool a little shallower), both from rest with their hydrostatic
 pressure, for the same simulated time, side by side in one process at one thread.  Reported:
 wall seconds per simulated second and per step of each, and their ratios (the issue's target:
-at most 1.3x), with the steps each took and how many of them the DFSPH step control shortened (a density
-solve above 20 iterations; a particle approaching a wall or a moving body too fast).
+at most 1.3x), with the steps each took and how many of them the DFSPH step control
+shortened (a density solve above 20 iterations; a particle approaching a wall or a moving body
+too fast).
 
     python benchmarks/bench_coupling.py [--duration 0.5] [--spacing 0.01]
 
