@@ -435,7 +435,8 @@ class SPHLiquid(Simulation):
         Returns
         -------
         (K, 3) float64
-            Zeros before the first step and after a step that raised.
+            Zeros before the first step, and after a step that stopped part way with an
+            error (e.g. :class:`filters.simulation.SimulationUnstableError`).
         """
         if self.model.solver != "dfsph":
             raise ValueError("boundary_forces needs solver='dfsph'")
