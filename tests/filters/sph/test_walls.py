@@ -122,6 +122,21 @@ def test_boundary_forces_are_the_last_steps_after_a_density_evaluation():
     assert not np.array_equal(sim.boundary_forces(), forces)
 
 
+def test_boundary_forces_are_zero_after_a_step_that_failed_part_way():
+    """The docstring's promise: no force from a step that did not finish is reported as the
+    last step's."""
+    from filters.simulation import SimulationUnstableError
+
+    sim = _scene_liquid(spacing=0.01)
+    for _ in range(20):
+        sim.step(sim.max_step())
+    assert np.abs(sim.boundary_forces()).max() > 0.0
+    sim.state.positions[0] = np.nan
+    with pytest.raises(SimulationUnstableError):
+        sim.step(sim.max_step())
+    assert not sim.boundary_forces().any()
+
+
 def test_viscous_forces_on_the_boundary_balance_the_fluids_momentum():
     """With the scene's viscosity the balance holds to the implicit viscosity solve's
     tolerance (its residual is not momentum-free)."""
