@@ -7,6 +7,12 @@ that can be copied and restored, ``step(dt)`` / ``advance_to(t)``, and frames of
 import importlib
 from typing import TYPE_CHECKING
 
+from .numba_cache import install_when_numba_loads
+
+# Numba's cache keyed on each kernel's dependencies too, damaged entries read as misses
+# (filters.numba_cache); installed when Numba is first imported, so not loaded here.
+install_when_numba_loads()
+
 if TYPE_CHECKING:
     from .ballistic import BallisticModel, BallisticParticles
     from .rigid import RigidBodies, RigidBody
