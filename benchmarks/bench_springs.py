@@ -20,7 +20,8 @@ Run (under the project's benchmark lock)::
    Warp's own ``benchmark_cloth_warp.WpIntegrator`` on its CPU device, with the same particles and
    springs, in the same process.
 
-``--explicit-only`` re-times part 2 alone and replaces its entries in the results file (the
+``--explicit-only`` re-times part 2 alone (and profiles the serial substep: gather, force loop,
+scatter, :func:`explicit_profile`) and replaces its entries in the results file (the
 implicit rows stay as they were, with their own machine record).
 
 BLAS is pinned to one thread before NumPy loads (threadpoolctl as well), because this machine's
@@ -262,6 +263,74 @@ def explicit(n=64, frames=10, substeps=16, repeats=9):
     return results
 
 
+def explicit_profile(n=64, repeats=15, inner=200):
+    """Where one serial explicit substep's time goes (1 thread, the cloth of :func:`explicit`).
+
+    Best time of: the whole step (``symplectic_serial``); the springs' forces alone
+    (``spring_forces_into``: end-point differences gathered, then the vectorised force loop);
+    the gather alone (12 loads from the particles' arrays and 6 stores per spring).  The compute
+    is forces minus gather, the scatter and update the step minus forces.  Each part is set
+    against what bounds it on this core: the gather's and the scatter's memory operations per
+    spring, the force loop's square root and division per spring (both on the divider).
+    """
+    from numba import njit
+
+    from filters.elastic.spring_kernels import spring_forces_into, symplectic_serial
+
+    @njit(cache=False)
+    def gather(x, v, pa, pb, buf, reps):
+        for _ in range(reps):
+            for s in range(pa.shape[0]):
+                a = pa[s]
+                b = pb[s]
+                for q in range(3):
+                    buf[q, s] = x[a, q] - x[b, q]
+                    buf[3 + q, s] = v[a, q] - v[b, q]
+
+    @njit(cache=False, error_model="numpy")
+    def forces(x, v, pa, pb, ke, rest, c, mode, buf, reps):
+        for _ in range(reps):
+            spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, 0, pa.shape[0])
+
+    @njit(cache=False, error_model="numpy")
+    def step(x, v, pa, pb, ke, rest, c, mode, masses, inv_mass, gravity, drag, h, f, buf, reps):
+        for _ in range(reps):
+            symplectic_serial(x, v, pa, pb, ke, rest, c, mode, masses, inv_mass, gravity, drag,
+                              h, f, buf)
+
+    top = _cloth(n, plane="xz")
+    rest = top.rest_lengths
+    sy = SpringSystem(top.springs, rest, 1000.0 * rest, np.full(n * n, MASS), damping=10.0,
+                      damping_mode="axial", pinned=top.pinned)
+    x = top.positions.copy()
+    v = np.zeros_like(x)
+    f = np.empty_like(x)
+    buf = np.empty((6, rest.size))
+    h = 1.0 / 60.0 / 16
+    args = (sy._pa, sy._pb, sy.ke, sy.rest, sy.damping, sy.mode)
+    step(x, v, *args, sy.masses, sy.inv_mass, sy.gravity, sy.drag, h, f, buf, 200)  # moving
+    runs = {"step": lambda r: step(x, v, *args, sy.masses, sy.inv_mass, sy.gravity, sy.drag, h,
+                                   f, buf, r),
+            "forces": lambda r: forces(x, v, *args, buf, r),
+            "gather": lambda r: gather(x, v, sy._pa, sy._pb, buf, r)}
+    for run in runs.values():
+        run(1)
+    best = {name: np.inf for name in runs}
+    for _ in range(repeats):  # in turns: a slow spell of the machine hits all alike
+        for name, run in runs.items():
+            t0 = time.perf_counter()
+            run(inner)
+            best[name] = min(best[name], (time.perf_counter() - t0) / inner)
+    us = {name: 1e6 * t for name, t in best.items()}
+    springs = rest.size
+    parts = {"gather": us["gather"], "force_loop": us["forces"] - us["gather"],
+             "scatter_and_update": us["step"] - us["forces"]}
+    return dict(particles=n * n, springs=springs, step_us=us["step"],
+                parts_us=parts, parts_ns_per_spring={k: 1e3 * t / springs
+                                                     for k, t in parts.items()},
+                kernels="serial (one thread)")
+
+
 def _best_us(fn, repeats=30, inner=5):
     """Best time (us) of ``fn`` over ``repeats`` blocks of ``inner`` calls (after one call)."""
     fn()
@@ -385,6 +454,8 @@ def main():
         out["explicit_rounds"] = rounds
         out["explicit"] = _explicit_summary(rounds)
         out["explicit"]["machine"] = _machine()
+        out["explicit_profile"] = explicit_profile()
+        print(json.dumps(out["explicit_profile"], indent=1))
         RESULTS.write_text(json.dumps(out, indent=1))
         print(json.dumps(out["explicit"], indent=1))
         print(f"wrote {RESULTS} (explicit rows only)")
@@ -392,6 +463,7 @@ def main():
     out = dict(machine=_machine(), implicit=[])
     out["explicit_rounds"] = rounds
     out["explicit"] = _explicit_summary(rounds)
+    out["explicit_profile"] = explicit_profile()
     print(json.dumps(out["explicit"], indent=1), flush=True)
     cases = [
         (64, tuple(VARIANTS), 12, {}),

@@ -34,6 +34,7 @@ __all__ = [
     "point_energies",
     "jacobian_blocks",
     "incidence",
+    "incidence_in_spring_order",
     "assemble_system",
     "operator_coefficients",
     "operator_diagonal",
@@ -254,7 +255,8 @@ def total_forces(x, v, pa, pb, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign,
 def symplectic_parallel(x, v, pa, pb, ke, rest, c, mode, inc_ptr, inc_spring, inc_sign, masses,
                         inv_mass, gravity, drag, h, buf):
     """One symplectic Euler step in place: v += h f(x, v) / m; x += h v (pinned: inv_mass 0);
-    ``buf`` (6, S) scratch."""
+    ``buf`` (6, S) scratch.  With the incidence lists in spring order
+    (:func:`incidence_in_spring_order`) the same bits as :func:`symplectic_serial`."""
     ns = pa.shape[0]
     for ch in prange((ns + FORCE_CHUNK - 1) // FORCE_CHUNK):
         spring_forces_into(x, v, pa, pb, ke, rest, c, mode, buf, ch * FORCE_CHUNK,
@@ -370,6 +372,20 @@ def jacobian_blocks(x, v, pairs, ke, rest, c, mode, definite, with_damping_dx, j
                         pq = (1.0 if p == q else 0.0) - u[p] * u[q]
                         wp = w[q] - wu * u[q]
                         jx[s, p, q] += -(c[s] / l) * (u[p] * wp + wu * pq)
+
+
+def incidence_in_spring_order(pairs: np.ndarray,
+                               n: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The incident springs and signs of :func:`incidence` (same ``ptr``), each particle's in
+    increasing spring order: a per-particle gather in this order adds the same numbers in the
+    same order as scattering the springs' forces in spring order (:func:`symplectic_serial`),
+    so the parallel and the serial step give the same bits."""
+    s = pairs.shape[0]
+    nodes = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    springs = np.concatenate([np.arange(s), np.arange(s)])
+    signs = np.concatenate([np.ones(s), -np.ones(s)])
+    order = np.lexsort((springs, nodes))
+    return springs[order].astype(np.int64), signs[order]
 
 
 def incidence(pairs: np.ndarray,

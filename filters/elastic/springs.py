@@ -44,6 +44,7 @@ from .spring_kernels import (
     elastic_energy,
     elastic_energy_serial,
     incidence,
+    incidence_in_spring_order,
     jacobian_blocks,
     operator_coefficients,
     operator_diagonal,
@@ -77,11 +78,13 @@ DAMPING_MODES = ("axial", "relative")
 #: work, and on a busy machine a descheduled worker thread stalls every region.
 PARALLEL_MIN_SPRINGS = 50_000
 
-#: The fused symplectic Euler step is one parallel region of ~10 ns per spring, so it pays off
-#: from fewer springs (64x64 cloth, 23,938 springs: 235 us serial, 160-175 us on 2 threads,
-#: benchmarks/results/springs.json).  On a machine shared with other busy processes a parallel
-#: region can stall: set this above the spring count to force the serial kernel.
-PARALLEL_MIN_SPRINGS_EXPLICIT = 8_192
+#: Below this many springs the explicit step runs on one thread.  Both kernels give the same
+#: bits (the parallel one gathers each particle's forces in spring order), so this is a speed
+#: setting only: on 2 threads the serial kernel is faster up to ~50k springs (one step of a
+#: hanging cloth, serial / 2 threads: 13.3k springs 88 / 125 us, 23.9k 172 / 195 us, 54.3k
+#: 509 / 476 us, 97k 780 / 700 us, 193k 1.93 / 1.55 ms; 2026-11-28).  On a machine shared
+#: with other busy processes a parallel region can stall: raise it to force the serial kernel.
+PARALLEL_MIN_SPRINGS_EXPLICIT = 50_000
 
 
 def _threads(work):
@@ -363,6 +366,9 @@ class SpringSystem(ImplicitSystem):
         self.inv_mass = np.where(pinned, 0.0, 1.0 / masses)
         self.ke = np.ascontiguousarray(effective_stiffness(self.stiffness, self.rest))
         self.inc_ptr, self.inc_spring, self.inc_sign, self.inc_other = incidence(self.pairs, n)
+        # the explicit step's gather in spring order: its parallel kernel then adds each
+        # particle's forces in the serial kernel's order (the same bits on either)
+        self._step_spring, self._step_sign = incidence_in_spring_order(self.pairs, n)
         # per-spring forces (rows 0-2) and scratch of the force kernels
         self._fbuf = np.empty((6, s))
         # the springs' end points as uint32 (no negative-index wrap-around in the kernels)
@@ -462,7 +468,7 @@ class SpringSystem(ImplicitSystem):
                                      self.mode, self.masses, self.inv_mass, self.gravity,
                                      self.drag, h, self._f_scratch, self._fbuf)
         return symplectic_parallel(x, v, self._pa, self._pb, self.ke, self.rest, self.damping,
-                                   self.mode, self.inc_ptr, self.inc_spring, self.inc_sign,
+                                   self.mode, self.inc_ptr, self._step_spring, self._step_sign,
                                    self.masses, self.inv_mass, self.gravity, self.drag, h,
                                    self._fbuf)
 

@@ -194,3 +194,33 @@ def test_vectorised_forces_are_the_scalar_formula_bit_for_bit(mode):
     v_ref = v + (h * (1.0 / masses))[:, None] * f
     assert np.array_equal(v1, v_ref)
     assert np.array_equal(x1, x + h * v_ref)
+
+
+@pytest.mark.parametrize("mode", ["axial", "relative"])
+def test_the_parallel_explicit_step_gives_the_serial_steps_bits(mode, monkeypatch):
+    """Above PARALLEL_MIN_SPRINGS_EXPLICIT the explicit step gathers each particle's forces in
+    parallel; in spring order (the incidence lists of incidence_in_spring_order) it adds them
+    as the serial kernel's scatter does, so where the threshold lies changes no bit."""
+    import filters.elastic.springs as springs_module
+
+    rng = np.random.default_rng(5)
+    n, s = 300, 2000
+    x0 = rng.standard_normal((n, 3))
+    v0 = rng.standard_normal((n, 3))
+    pairs = rng.integers(0, n, (s, 2))
+    pairs[:, 1] = np.where(pairs[:, 1] == pairs[:, 0], (pairs[:, 0] + 1) % n, pairs[:, 1])
+    rest = rng.uniform(0.1, 2.0, s)
+    rest[::7] = 0.0
+    system = SpringSystem(pairs, rest, rng.uniform(1.0, 100.0, s), rng.uniform(0.5, 2.0, n),
+                          damping=rng.uniform(0.0, 3.0, s), damping_mode=mode, drag=0.1,
+                          pinned=np.arange(n) < 3)
+    runs = []
+    for threshold in (2**62, 0):  # serial, then parallel
+        monkeypatch.setattr(springs_module, "PARALLEL_MIN_SPRINGS_EXPLICIT", threshold)
+        x, v = x0.copy(), v0.copy()
+        for _ in range(50):
+            system.symplectic_step(x, v, 1e-3)
+        runs.append((x, v))
+    (xs, vs), (xp, vp) = runs
+    assert not np.array_equal(xs, x0)
+    assert np.array_equal(xs, xp) and np.array_equal(vs, vp)
