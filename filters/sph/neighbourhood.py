@@ -12,8 +12,8 @@ from numba import njit, prange
 
 from ..kernels import kernel_w, kernel_w_dw
 
-__all__ = ["neighbourhood_pass", "boundary_reach_mask", "cell_range", "wall_of", "WALL_CLUSTERS",
-           "SAME_WALL_COS"]
+__all__ = ["neighbourhood_pass", "boundary_reach_mask", "mark_boundary_reach", "cell_range",
+           "wall_of", "WALL_CLUSTERS", "SAME_WALL_COS"]
 
 #: Wall clusters kept per fluid particle: the whole boundary, then up to three walls by normal.
 WALL_CLUSTERS = 4
@@ -45,6 +45,14 @@ def boundary_reach_mask(xb, origin, cell, dims):
     """Cells of a grid (edge ``cell``) that have a boundary particle within two cells per axis:
     a fluid particle whose cell is not marked has no boundary neighbour within ``2 cell``."""
     mask = np.zeros(dims[0] * dims[1] * dims[2], dtype=np.bool_)
+    mark_boundary_reach(mask, xb, origin, cell, dims)
+    return mask
+
+
+@njit(cache=True, error_model="numpy")
+def mark_boundary_reach(mask, xb, origin, cell, dims):
+    """Mark in ``mask`` the cells of :func:`boundary_reach_mask` for the particles ``xb`` (the
+    mask of a union of particle sets is the union of their masks)."""
     inv = 1.0 / cell
     for b in range(xb.shape[0]):
         x0, x1 = cell_range(xb[b, 0], origin[0], inv, dims[0])
@@ -55,7 +63,6 @@ def boundary_reach_mask(xb, origin, cell, dims):
                 row = (iz * dims[1] + iy) * dims[0]
                 for ix in range(x0, x1 + 1):
                     mask[row + ix] = True
-    return mask
 
 
 @njit(cache=True, inline="always", error_model="numpy")

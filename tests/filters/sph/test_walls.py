@@ -302,3 +302,43 @@ def test_one_layer_of_samples_fills_a_fifth_of_the_kernel():
     assert 0.18 < phi(0.0) < 0.22
     assert phi(0.0) == max(phi(z) for z in np.linspace(-0.01, 0.01, 9))
     assert phi(0.5 * s) == pytest.approx(half_space_fraction(0.58 * s, h), abs=0.01)
+
+
+def test_a_moved_boundary_is_sorted_as_a_new_one():
+    """BoundarySet.move keeps the unmoved particles' reach mask between sorts (a body moves,
+    the tank does not): after moves of a part, a whole-set move, and one beyond the old grid,
+    the sorted arrays and the mask are those of a set built afresh from the same particles."""
+    from filters.sph.boundary_set import BoundarySet
+    from filters.sph.neighbourhood import boundary_reach_mask
+
+    rng = np.random.default_rng(2)
+    walls = box_boundary((0, 0, 0), (0.2, 0.1, 0.1), 0.01)
+    body = mesh_boundary(*_cube(0.04, (0.1, 0.05, 0.05)), 0.01)
+    both = concatenate_boundaries(walls, body)
+    live = BoundarySet(both, 1000.0, 0.01)
+    idx = walls.n_points + np.arange(body.n_points)
+    shifts = [(0.003, -0.002, 0.001), (0.01, 0.0, -0.004), (0.0, 0.0, 0.2)]  # last: out of the box
+    for shift in shifts:
+        pts = live.points[idx] + shift
+        vel = rng.standard_normal((idx.size, 3))
+        live.move(points=pts, velocities=vel, indices=idx)
+        fresh = BoundarySet(BoundaryParticles(live.points, live.volumes, normals=live.normals,
+                                              velocities=live.velocities,
+                                              friction=live.friction), 1000.0, 0.01)
+        for name in ("order", "sorted_points", "sorted_velocities", "sorted_normals",
+                     "sorted_volumes", "sorted_mass", "sorted_friction_volumes", "origin",
+                     "dims", "start", "mask"):
+            np.testing.assert_array_equal(getattr(live, name), getattr(fresh, name), name)
+        assert np.array_equal(live.mask, boundary_reach_mask(live.sorted_points, live.origin,
+                                                             0.01, live.dims))
+    live.move(points=live.points + 0.001)  # every particle
+    assert np.array_equal(live.mask, boundary_reach_mask(live.sorted_points, live.origin, 0.01,
+                                                         live.dims))
+
+
+def _cube(size, center):
+    v = (np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1],
+                   [0, 1, 1]], dtype=float) - 0.5) * size + center
+    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6],
+                  [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    return v, f
