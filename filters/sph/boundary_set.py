@@ -23,7 +23,7 @@ from ..binning import cell_keys, counting_sort
 from ..kernels import kernel_dw
 from ..neighbors import bounds
 from .boundary import BoundaryParticles
-from .neighbourhood import boundary_reach_mask, cell_range, mark_boundary_reach, wall_of
+from .neighbourhood import boundary_reach_mask, cell_range, mark_boundary_reach, wall_key, wall_of
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -252,7 +252,9 @@ def _forces(sel, xb, vb, volb, fvolb, nrmb, x, start, origin, cell, dims, mass, 
                         if ncl[i] > 0:
                             p += pw[i, 0]
                             if ncl[i] > 1:  # the wall b was counted in (same rule as the pass)
-                                w = wall_of(i, nrmb[b, 0], nrmb[b, 1], nrmb[b, 2], ncl[i], cn)
+                                mx, my, mz = wall_key(nrmb[b, 0], nrmb[b, 1], nrmb[b, 2],
+                                                      dx, dy, dz)
+                                w = wall_of(i, mx, my, mz, ncl[i], cn)
                                 p += pw[i, min(w, ncl[i] - 1)]
                         c = mass * p * volb[b] * g
                         if nu_b > 0.0 and fvolb[b] > 0.0:

@@ -16,10 +16,20 @@ from .wall_profile import equivalent_distance
 
 __all__ = ["density_rate", "pressure_accel", "pressure_accel_wall", "jacobi", "jacobi_wall",
            "density_start", "divergence_start", "wall_start", "wall_approach", "kick", "store",
-           "drift", "NO_WALL"]
+           "drift", "NO_WALL", "DEGENERATE_WALL",
+           "OPPOSED_WALLS"]
 
 #: Marks a wall constraint that does not apply (no boundary near enough).
 NO_WALL = 1e30
+#: A wall constraint whose gradient ``|cgb_ik|`` is below this fraction of the flat-wall slope
+#: ``g`` at its ``phi_ik`` is dropped: boundary on opposite sides of the particle (a film
+#: between a body and the floor) whose gradients cancel, so that moving the particle hardly
+#: changes ``phi_ik``; enforcing it would take a wall pressure of ``slack / |cgb|^2`` and kick
+#: the particle by ``slack / |cgb|`` in whatever direction the remainder points.
+DEGENERATE_WALL = 0.1
+#: Cosine below minus which the gradients of two single-wall constraints of a particle count as
+#: opposed (walls on opposite sides of it, 135 degrees and more apart); both are dropped.
+OPPOSED_WALLS = 0.7
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -185,14 +195,31 @@ def wall_start(v, ncl, cphi, cgb, cvb, dt, dmin, reach, inv_d, inv_s, wsrc, pw):
             gx = cgb[i, k, 0]
             gy = cgb[i, k, 1]
             gz = cgb[i, k, 2]
-            if cphi[i, k] <= 0.0 or gx * gx + gy * gy + gz * gz <= 0.0:
+            g2 = gx * gx + gy * gy + gz * gz
+            if cphi[i, k] <= 0.0 or g2 <= 0.0:
                 continue
             d, g = equivalent_distance(cphi[i, k], inv_d, inv_s)
             dm = dmin[0] if k == 0 else dmin[1]
-            if d > dm + reach:
+            if d > dm + reach or g2 < (DEGENERATE_WALL * g) ** 2:
                 continue
             wsrc[i, k] = (d - dm) * g - dt * (v[i, 0] * gx + v[i, 1] * gy + v[i, 2] * gz
                                               - cvb[i, k])
+        # two single walls on opposite sides of the particle (a film under a landing body):
+        # it cannot keep its distance to both, and two opposed wall pressures would only
+        # escalate against each other; the density solve alone squeezes the film out
+        for k in range(1, ncl[i]):
+            if wsrc[i, k] >= NO_WALL:
+                continue
+            for q in range(k + 1, ncl[i]):
+                if wsrc[i, q] >= NO_WALL:
+                    continue
+                dot = (cgb[i, k, 0] * cgb[i, q, 0] + cgb[i, k, 1] * cgb[i, q, 1]
+                       + cgb[i, k, 2] * cgb[i, q, 2])
+                nk = cgb[i, k, 0] ** 2 + cgb[i, k, 1] ** 2 + cgb[i, k, 2] ** 2
+                nq = cgb[i, q, 0] ** 2 + cgb[i, q, 1] ** 2 + cgb[i, q, 2] ** 2
+                if dot < 0.0 and dot * dot > OPPOSED_WALLS * OPPOSED_WALLS * nk * nq:
+                    wsrc[i, k] = NO_WALL
+                    wsrc[i, q] = NO_WALL
 
 
 @njit(parallel=True, cache=True, error_model="numpy")

@@ -13,7 +13,7 @@ from numba import njit, prange
 from ..kernels import kernel_w, kernel_w_dw
 
 __all__ = ["neighbourhood_pass", "boundary_reach_mask", "mark_boundary_reach", "cell_range",
-           "wall_of", "WALL_CLUSTERS", "SAME_WALL_COS"]
+           "wall_key", "wall_of", "WALL_CLUSTERS", "SAME_WALL_COS"]
 
 #: Wall clusters kept per fluid particle: the whole boundary, then up to three walls by normal.
 WALL_CLUSTERS = 4
@@ -66,18 +66,41 @@ def mark_boundary_reach(mask, xb, origin, cell, dims):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def wall_key(mx, my, mz, dx, dy, dz):
+    """The normal ``(mx, my, mz)`` of a boundary particle as :func:`wall_of` compares it, seen
+    from a fluid particle at ``(dx, dy, dz)`` = ``x_i - x_b``: as given where it faces the
+    particle (``n . (x_i - x_b) > 0``), twice as long where it does not (the particle lies
+    beside or behind the surface the sample belongs to, e.g. beside an edge of a body)."""
+    if mx * dx + my * dy + mz * dz > 0.0:
+        return mx, my, mz
+    return 2.0 * mx, 2.0 * my, 2.0 * mz
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def wall_of(i, mx, my, mz, nc, cn):
     """The first of particle ``i``'s wall clusters 1 .. nc - 1 whose normal is within 45 degrees
-    of ``(mx, my, mz)`` (either orientation; a zero normal matches a zero one), else ``nc``."""
-    zero = mx * mx + my * my + mz * mz == 0.0
+    of ``(mx, my, mz)`` (a :func:`wall_key`; a zero normal matches a zero one), else ``nc``.
+
+    Normals match in either orientation (they may be given either way), except two that both
+    face the particle: those in opposite directions are walls on opposite sides of it (the
+    floor, and a body landing on it) and are two walls.  Scaling a normal by 2 is exact, so the
+    either-orientation test is the unit normals' bit for bit."""
+    m2 = mx * mx + my * my + mz * mz
+    zero = m2 == 0.0
     for k in range(1, nc):
         cx = cn[i, k, 0]
         cy = cn[i, k, 1]
         cz = cn[i, k, 2]
+        c2 = cx * cx + cy * cy + cz * cz
         if zero:
-            if cx * cx + cy * cy + cz * cz == 0.0:
+            if c2 == 0.0:
                 return k
-        elif abs(cx * mx + cy * my + cz * mz) >= SAME_WALL_COS:
+            continue
+        dot = cx * mx + cy * my + cz * mz
+        if m2 < 2.0 and c2 < 2.0:  # both face the particle
+            if dot >= SAME_WALL_COS:
+                return k
+        elif abs(dot) >= SAME_WALL_COS * (2.0 if m2 > 2.0 else 1.0) * (2.0 if c2 > 2.0 else 1.0):
             return k
     return nc
 
@@ -119,8 +142,9 @@ def neighbourhood_pass(x, start, origin, cell, dims, boundary, vol, mass, h, kin
     The **wall clusters** of particle ``i``: cluster 0 sums every boundary neighbour, clusters
     1 to ``ncl_i - 1`` the boundary neighbours grouped by their normals (a neighbour joins the
     first cluster whose normal, that of its first member, is within 45 degrees of its own,
-    either orientation, or opens a new one; past :data:`WALL_CLUSTERS` it joins the last), so
-    that each cluster is one wall of a corner.  Per cluster ``k``: ``cphi[i, k] = sum V_b W_ib``
+    either orientation unless both face the particle from opposite sides (:func:`wall_of`), or
+    opens a new one; past :data:`WALL_CLUSTERS` it joins the last), so that each cluster is one
+    wall of a corner or of a gap.  Per cluster ``k``: ``cphi[i, k] = sum V_b W_ib``
     (the fraction of the kernel the wall fills), ``cgb[i, k] = sum V_b grad W_ib`` (1/m),
     ``cvb[i, k] = sum V_b v_b . grad W_ib`` (1/s) and its normal ``cn[i, k]``; ``ncl_i = 0``
     without boundary neighbours.
@@ -255,9 +279,7 @@ def neighbourhood_pass(x, start, origin, cell, dims, boundary, vol, mass, h, kin
                             vg = bvel[b, 0] * tx + bvel[b, 1] * ty + bvel[b, 2] * tz
                             vr += vg
                         # the wall this particle belongs to (as the last one's, if the same normal)
-                        mx = bnrm[b, 0]
-                        my = bnrm[b, 1]
-                        mz = bnrm[b, 2]
+                        mx, my, mz = wall_key(bnrm[b, 0], bnrm[b, 1], bnrm[b, 2], dx, dy, dz)
                         if mx == lx and my == ly and mz == lz:
                             k = lk
                         else:

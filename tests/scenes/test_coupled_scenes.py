@@ -36,6 +36,10 @@ def test_floating_scene_small(tmp_path, capsys):
     for w, b in zip(water, bodies, strict=True):
         assert w.n_points == n
         assert np.asarray(w.field_data["fluid_penetration"]).tolist() == [0.0]
+        # the tank holds without its safety net, also as the heavy box lands on the floor
+        # (the film under it was kicked through the floor once at t = 0.26 s while the floor
+        # and the box's underside made one wall cluster: filters.sph.neighbourhood.wall_of)
+        assert np.asarray(w.field_data["container_corrections"]).tolist() == [0]
         # each box's mesh is its mesh as given, rotated and translated by its field data
         q = np.asarray(b.field_data["body_orientation"]).reshape(-1, 4)
         t = np.asarray(b.field_data["body_translation"]).reshape(-1, 3)
@@ -52,8 +56,14 @@ def test_floating_scene_small(tmp_path, capsys):
     z = np.asarray(water[-1].field_data["body_position"]).reshape(-1, 3)[:, 2]
     level = np.percentile(np.asarray(water[-1].points)[:, 2], 99) + 0.5 * p["spacing"]
     # the 500 and 900 kg/m^3 boxes float (their tops above the water, the lighter higher),
-    # the 1500 kg/m^3 one lies on the floor (on a film a particle thick at this spacing)
-    assert z[0] + height / 2 > level and z[1] + height / 2 > level - 0.5 * p["spacing"]
+    # the 1500 kg/m^3 one lies on the floor (on a film a particle thick at this spacing).
+    # The liquid's force on a body falls short of rho g V by ~10 % (the held box's test in
+    # tests/filters/coupling), so the 900 kg/m^3 box is about neutrally buoyant and hovers
+    # with its top just under the water: at t = 1.5 s measured 0.40 spacings below the level
+    # (still rising) before the walls on opposite sides of a particle were told apart (the
+    # change of this test's first assertion), 0.78 after (settled from t = 1.3 s at 0.73-0.93);
+    # within one spacing, not half of one as before.  At the default 1 cm: 0.8-1.1 cm below.
+    assert z[0] + height / 2 > level and z[1] + height / 2 > level - p["spacing"]
     assert z[0] > z[1] > z[2]
     assert z[2] - height / 2 < 1.5 * p["spacing"]
 
@@ -100,3 +110,6 @@ def test_jello_splash_scene_small(tmp_path, capsys):
     # water inside the jello: its boundary layers hold the liquid off (no safety net here)
     depth = max(float(np.asarray(w.field_data["fluid_penetration"])[0]) for w in water)
     assert depth < 0.5 * p["spacing"], depth
+    # and the tank holds without its safety net
+    corrections = [int(np.asarray(w.field_data["container_corrections"])[0]) for w in water]
+    assert corrections == [0] * len(water), corrections

@@ -342,3 +342,41 @@ def _cube(size, center):
     f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6],
                   [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
     return v, f
+
+
+def test_walls_on_opposite_sides_of_a_particle_are_two_walls_and_not_enforced():
+    """A particle in a film between the floor (below, normal +z) and a body's underside (above,
+    normal -z): both normals face it, so they are two walls (either orientation otherwise: a
+    sample the particle is beside or behind matches a wall of the opposite normal), and the
+    two opposed single-wall constraints are dropped (filters.sph.dfsph_kernels.wall_start)."""
+    from filters.sph.dfsph_kernels import NO_WALL, wall_start
+    from filters.sph.neighbourhood import wall_key, wall_of
+    from filters.sph.wall_profile import WallProfile
+
+    cn = np.zeros((1, 4, 3))
+    cn[0, 1] = wall_key(0.0, 0.0, 1.0, 0.0, 0.0, 0.01)  # the floor's sample below
+    below = wall_key(0.0, 0.0, -1.0, 0.0, 0.0, -0.01)  # the body's sample above, facing it
+    assert wall_of(0, *below, 2, cn) == 2  # a wall of its own
+    beside = wall_key(0.0, 0.0, -1.0, 0.01, 0.0, 0.001)  # a body sample the particle is beside
+    assert wall_of(0, *beside, 2, cn) == 1  # either orientation, as before
+    assert wall_of(0, *wall_key(0.0, 0.0, 1.0, 0.003, 0.0, 0.01), 2, cn) == 1  # the floor again
+
+    h = 0.02
+    p = WallProfile(h)
+    g = 30.0  # 1/m, a flat wall's slope near it
+    ncl = np.array([3])
+    cphi = np.array([[0.6, 0.3, 0.3, 0.0]])
+    cgb = np.zeros((1, 4, 3))
+    cgb[0, 0] = (0.0, 0.0, 0.5 * g)  # the whole boundary: the two nearly cancel
+    cgb[0, 1] = (0.0, 0.0, -g)  # grad phi points into the floor ...
+    cgb[0, 2] = (0.0, 0.0, 1.5 * g)  # ... and into the body
+    cvb = np.array([[0.0, 0.0, -40.0, 0.0]])  # the body comes down
+    wsrc = np.empty((1, 4))
+    pw = np.empty((1, 4))
+    args = (np.zeros((1, 3)), ncl, cphi, cgb, cvb, 1e-3, np.array([0.1, 0.3]) * 0.01, 0.01,
+            p.inverse_distance, p.inverse_slope, wsrc, pw)
+    wall_start(*args)
+    assert wsrc[0, 1] == NO_WALL and wsrc[0, 2] == NO_WALL
+    cgb[0, 2] = (0.0, g, 0.0)  # walls at right angles (a corner): both kept
+    wall_start(*args)
+    assert wsrc[0, 1] < NO_WALL and wsrc[0, 2] < NO_WALL
