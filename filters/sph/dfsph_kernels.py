@@ -16,16 +16,16 @@ from .wall_profile import equivalent_distance
 
 __all__ = ["density_rate", "pressure_accel", "pressure_accel_wall", "jacobi", "jacobi_wall",
            "density_start", "divergence_start", "wall_start", "wall_approach", "kick", "store",
-           "drift", "NO_WALL", "DEGENERATE_WALL",
-           "OPPOSED_WALLS"]
+           "drift", "NO_WALL", "DEGENERATE_WALL", "OPPOSED_WALLS"]
 
 #: Marks a wall constraint that does not apply (no boundary near enough).
 NO_WALL = 1e30
 #: A wall constraint whose gradient ``|cgb_ik|`` is below this fraction of the flat-wall slope
-#: ``g`` at its ``phi_ik`` is dropped: boundary on opposite sides of the particle (a film
-#: between a body and the floor) whose gradients cancel, so that moving the particle hardly
-#: changes ``phi_ik``; enforcing it would take a wall pressure of ``slack / |cgb|^2`` and kick
-#: the particle by ``slack / |cgb|`` in whatever direction the remainder points.
+#: ``g`` at its ``phi_ik`` is dropped: boundary on opposite sides of the particle whose
+#: gradients cancel (the whole boundary's cluster in a film between a body and the floor), so
+#: that moving the particle hardly changes ``phi_ik``; enforcing it would take a wall pressure
+#: of ``slack / |cgb|^2`` and kick the particle by ``slack / |cgb|`` in whatever direction the
+#: remainder points.
 DEGENERATE_WALL = 0.1
 #: Cosine below minus which the gradients of two single-wall constraints of a particle count as
 #: opposed (walls on opposite sides of it, 135 degrees and more apart); both are dropped.
