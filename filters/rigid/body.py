@@ -8,9 +8,9 @@ mass, m) with orientation ``q`` (a unit quaternion) has its vertices at
 therefore draws the mesh as it was given.
 
 Contact points are the vertices plus points along every edge at most ``contact_spacing`` apart
-(edge-edge contacts between boxes need the latter); the surface samples for a liquid coupling
-are the boundary particles of :func:`filters.sph.boundary.mesh_boundary` taken on the mesh in
-the body frame, with their SPH volumes.
+(edge-edge contacts between boxes need the latter); the samples for a liquid coupling
+are the boundary particles of :func:`filters.sph.boundary.mesh_boundary` (the mesh's outer
+layers) in the body frame, with their SPH volumes.
 """
 
 from __future__ import annotations
@@ -81,11 +81,11 @@ class RigidBody:
     sdf_resolution : int
         Cells along the longest extent of the distance grid of a non-convex body, in [4, 256].
     sample_spacing : float, optional
-        Spacing (m) of the surface samples for a liquid coupling (:attr:`samples`); none when
-        omitted.
+        Spacing (m) of the samples for a liquid coupling (:attr:`samples`), the liquid's
+        particle spacing; none when omitted.
     sample_options : dict, optional
         Further arguments of :func:`filters.sph.boundary.mesh_boundary` (``support_factor``,
-        ``kernel``).
+        ``kernel``, ``layers``, ``origin``).
 
     Attributes
     ----------
@@ -111,7 +111,8 @@ class RigidBody:
     convex : bool
         Whether the mesh is convex (exact plane distances) or uses a distance grid.
     samples : BoundaryParticles or None
-        Body-frame surface samples with their SPH volumes (m^3).
+        Body-frame samples of the mesh's outer layers with their SPH volumes (m^3)
+        (:func:`filters.sph.boundary.mesh_boundary`).
     """
 
     def __init__(self, vertices: ArrayLike, faces: ArrayLike, *, density: float = 1000.0,

@@ -30,15 +30,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit, prange
 
+from ..validation import check_int
+
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from numpy.typing import NDArray
+    from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["SDF_CONVEX", "SDF_GRID", "face_planes", "is_convex", "grid_sdf", "pack_sdfs",
            "body_distance", "body_distances", "triangle_distance", "winding_number",
-           "convex_distance",
-           "grid_distance"]
+           "convex_distance", "grid_distance", "mesh_distances"]
 
 #: Kinds of body distance functions.
 SDF_CONVEX = 0
@@ -341,3 +342,42 @@ def body_distances(kinds, plane_start, planes, grid_meta, grid_values, body, poi
         out_n[i, 0] = n0
         out_n[i, 1] = n1
         out_n[i, 2] = n2
+
+
+def mesh_distances(vertices: ArrayLike, faces: ArrayLike, points: ArrayLike,
+                   resolution: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance (m, negative inside) and outward unit normal of a closed triangle mesh
+    at ``points``.
+
+    Exact for a convex mesh (its face planes); otherwise interpolated on a distance grid of
+    ``resolution`` cells along the mesh's longest extent (:func:`filters.rigid.sdf.grid_sdf`).
+
+    Parameters
+    ----------
+    vertices : (V, 3) array_like
+        Mesh vertices (m).
+    faces : (F, 3) array_like of int
+        Outward-oriented triangles of a closed mesh.
+    points : (N, 3) array_like
+        Where to evaluate (m).
+    resolution : int
+        Cells of the distance grid of a non-convex mesh, in [4, 256].
+
+    Returns
+    -------
+    distance : (N,) float64
+    normals : (N, 3) float64
+    """
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or not np.isfinite(p).all():
+        raise ValueError(f"points must be a finite (N, 3) array, got shape {p.shape}")
+    resolution = check_int("resolution", resolution, 4, 256)
+    planes = face_planes(v, f)
+    sdf = ("convex", planes) if is_convex(v, planes) else ("grid", *grid_sdf(v, f, resolution))
+    d = np.empty(p.shape[0])
+    n = np.empty_like(p)
+    if p.shape[0]:
+        body_distances(*pack_sdfs([sdf]), 0, p, np.zeros_like(p), 0.0, d, n)
+    return d, n

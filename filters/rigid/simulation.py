@@ -457,7 +457,8 @@ class RigidBodies(Simulation):
         return out_x, out_v
 
     def surface_samples(self) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-        """The bodies' surface samples (:attr:`RigidBody.samples`) for the current state.
+        """The bodies' samples (:attr:`RigidBody.samples`, their outer layers) for the current
+        state.
 
         Returns
         -------

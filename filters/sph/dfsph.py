@@ -66,10 +66,11 @@ fluid pressure keeps the particle away, as in any liquid at rest, the wall press
 the solve also iterates until no wall constraint is violated by more than 1 % of the kernel.
 The constraints read a wall through the fraction of the kernel it fills, which reaches 1/2 at
 the surface of a boundary at least a support radius thick (the layers of
-:func:`filters.sph.boundary.box_boundary`, a body sampled in layers); one layer of samples
-(:func:`filters.sph.boundary.mesh_boundary`, a cloth) fills at most 0.22 of it, as a flat
-wall half a spacing away, so there the constraints do not act: liquid is held off such a
-sheet by its pressure, an isolated particle is not.  Walls on opposite sides of a particle (a
+:func:`filters.sph.boundary.box_boundary` and :func:`~filters.sph.boundary.mesh_boundary`);
+one layer of samples on a surface (a cloth, :func:`~filters.sph.boundary.boundary_volumes`)
+fills at most 0.22 of it, as a flat wall half a spacing away, so there the constraints do not
+act, and neither does the pressure, clamped at zero below rest density: a pool resting on such
+a sheet falls through it (measured).  Walls on opposite sides of a particle (a
 film between a landing body and the floor) are told apart: normals match in either orientation,
 except two that both face the particle from opposite sides
 (:func:`~filters.sph.neighbourhood.wall_of`); the particle cannot keep its distance to both, so

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from filters.sph import BoundaryParticles, ContainerCorrectionWarning, SPHLiquid
-from filters.sph.boundary import box_boundary, concatenate_boundaries, lattice_volume, mesh_boundary
+from filters.sph.boundary import (
+    boundary_volumes,
+    box_boundary,
+    concatenate_boundaries,
+    lattice_volume,
+    mesh_boundary,
+)
 from filters.sph.scenarios import dam_break_liquid
 from filters.sph.wall_profile import WallProfile, equivalent_distance, half_space_fraction
 
@@ -285,15 +291,25 @@ def test_wall_profile_reads_the_boundary_as_a_distance():
     assert 0.5 * s < d < 0.65 * s
 
 
+def _sheet(s, half=0.1, z=0.0):
+    """One layer of samples on a square lattice of step ``s`` in the plane ``z``, with the
+    volumes of a sampled surface (boundary_volumes): a cloth, as the liquid would see it."""
+    g = np.arange(-half, half + 0.5 * s, s)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    points = np.stack([x.ravel(), y.ravel(), np.full(x.size, z)], axis=1)
+    normals = np.zeros_like(points)
+    normals[:, 2] = 1.0
+    return BoundaryParticles(points, boundary_volumes(points, s), normals)
+
+
 def test_one_layer_of_samples_fills_a_fifth_of_the_kernel():
-    """What mesh_boundary's notes and the DFSPH walls' docstring say: a flat sheet sampled in
-    one layer fills at most 0.22 of a particle's kernel on it (a box wall: 1/2 on its plane),
-    as much as a thick wall half a spacing away."""
+    """What the DFSPH walls' docstring says: a flat sheet sampled in one layer fills at most
+    0.22 of a particle's kernel on it (a box wall: 1/2 on its plane), as much as a thick wall
+    half a spacing away."""
     from filters.kernels import kernel_value
 
     s, h = 0.01, 0.02
-    v = np.array([[-0.1, -0.1, 0.0], [0.1, -0.1, 0.0], [0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]])
-    sheet = mesh_boundary(v, [[0, 1, 2], [0, 2, 3]], s, check_closed=False)
+    sheet = _sheet(s)
 
     def phi(z):
         r = np.linalg.norm(sheet.points - [0.003, 0.002, z], axis=1)
@@ -302,6 +318,67 @@ def test_one_layer_of_samples_fills_a_fifth_of_the_kernel():
     assert 0.18 < phi(0.0) < 0.22
     assert phi(0.0) == max(phi(z) for z in np.linspace(-0.01, 0.01, 9))
     assert phi(0.5 * s) == pytest.approx(half_space_fraction(0.58 * s, h), abs=0.01)
+
+
+def _pool_on(floor, solver, s=0.01, top=0.1, until=0.4):
+    """A six-layer pool resting on ``floor`` (boundary particles whose upper surface is the
+    plane ``z = top``) in a 0.2 x 0.2 m tank; returns the most particles below ``top`` at any
+    step."""
+    tank = (0.2, 0.2, 0.3)
+    axes = [(np.arange(20) + 0.5) * s] * 2 + [top + (np.arange(6) + 0.5) * s]
+    x = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    options = {"kinematic_viscosity": 1e-4} if solver == "dfsph" else {}
+    sim = SPHLiquid(x, spacing=s, boundary=concatenate_boundaries(
+        box_boundary((0, 0, 0), tank, s), floor), solver=solver,
+        container=((0, 0, 0), tank), **options)
+    worst = 0
+    while sim.state.time < until:
+        sim.step(sim.max_step())
+        worst = max(worst, int((sim.state.positions[:, 2] < top).sum()))
+    return worst
+
+
+@pytest.mark.parametrize("solver", ["dfsph", "wcsph"])
+def test_a_pool_rests_on_a_closed_mesh(solver):
+    """mesh_boundary fills a closed mesh's outer layers, which hold a liquid as a tank's walls
+    do: no particle of a pool resting on a block (a closed box mesh filling the tank's lower
+    part) ever below its top face (measured: none; with the surface sampled in one layer, as
+    mesh_boundary did before, all 2,400 within 0.13 s, both solvers)."""
+    from filters.rigid.meshes import box_mesh
+
+    block = mesh_boundary(*box_mesh((0.2, 0.2, 0.1), (0.1, 0.1, 0.05)), 0.01)
+    assert _pool_on(block, solver) == 0
+
+
+def test_liquid_falling_on_a_mesh_ball_never_gets_inside_it():
+    """A pool dropped onto a ball (an icosphere, 5 spacings in radius, sampled by
+    mesh_boundary) splashes around it and never has a particle inside it (measured: none over
+    0.5 s; with the ball's surface sampled in one layer, 264 of 2,400 at once)."""
+    from filters.coupling.parts import count_inside
+    from filters.elastic.topology import icosphere
+
+    s, tank = 0.01, (0.2, 0.2, 0.3)
+    v, f = icosphere(0.05, 3, center=(0.1, 0.1, 0.07))
+    axes = [(np.arange(20) + 0.5) * s] * 2 + [0.14 + (np.arange(6) + 0.5) * s]
+    x = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    sim = SPHLiquid(x, spacing=s, boundary=concatenate_boundaries(
+        box_boundary((0, 0, 0), tank, s), mesh_boundary(v, f, s)), solver="dfsph",
+        kinematic_viscosity=1e-4, container=((0, 0, 0), tank))
+    lowest = np.inf
+    while sim.state.time < 0.5:
+        sim.step(sim.max_step())
+        assert not count_inside(sim.state.positions, v, f).any(), sim.state.time
+        lowest = min(lowest, sim.state.positions[:, 2].min())
+    assert lowest < 0.02  # the water went past the ball to the floor
+
+
+def test_one_layer_of_samples_does_not_hold_a_pool():
+    """What the DFSPH walls' and mesh_boundary's docstrings say: a surface sampled in one layer
+    fills too little of the kernel for the pressure to engage (a clamped pressure needs rest
+    density), and a pool resting on it falls through (measured: all 2,400 particles)."""
+    sheet = _sheet(0.01, half=0.1, z=0.1)
+    sheet = BoundaryParticles(sheet.points + [0.1, 0.1, 0.0], sheet.volumes, sheet.normals)
+    assert _pool_on(sheet, "dfsph", until=0.2) > 2000
 
 
 def test_a_moved_boundary_is_sorted_as_a_new_one():
