@@ -34,10 +34,11 @@ def solid_layers(vertices: ArrayLike, faces: ArrayLike, spacing: float, *,
     """Boundary particles filling the outer layers of the inside of a closed triangle mesh.
 
     The sampling of :func:`filters.sph.boundary.mesh_boundary` (the same function, without its
-    check that the mesh is closed): the cell centres ``origin + (i + 1/2) spacing`` of a lattice
-    that lie inside the mesh, at most ``layers * spacing`` under its surface.  A box whose sides
-    are whole multiples of ``spacing``, sampled from its corner, gets exactly the tank's wall
-    layers seen from the other side (:func:`filters.sph.boundary.box_boundary`).
+    check that the mesh is closed): the cell centres of a lattice that lie inside the mesh, at
+    most ``layers * spacing`` under its surface, the lattice's steps fitted to whole cells across
+    the mesh's bounding box, so that a box of any size has its first layer half a step inside
+    every face.  A box whose sides are whole multiples of ``spacing`` gets exactly the tank's
+    wall layers seen from the other side (:func:`filters.sph.boundary.box_boundary`).
 
     Parameters
     ----------
@@ -47,7 +48,7 @@ def solid_layers(vertices: ArrayLike, faces: ArrayLike, spacing: float, *,
     Returns
     -------
     BoundaryParticles
-        Volumes: the fluid's lattice volume (:func:`filters.sph.boundary.lattice_volume`);
+        Volumes: the lattice volume of its steps (:func:`filters.sph.boundary.lattice_volume`);
         normals: outward, of the surface nearest to each sample.
     """
     return mesh_boundary(vertices, faces, spacing, support_factor=support_factor,
