@@ -344,7 +344,7 @@ class DFSPHSolver:
         self.divergence_error = 0.0
 
     def density_solve(self, v: np.ndarray, rho: np.ndarray, rho0: float, dt: float,
-                      pi_prev: np.ndarray) -> None:
+                      pi_prev: np.ndarray, fraction: float = 1.0) -> None:
         """Make the predicted density ``rho0`` (Bender & Koschier 2017, Alg. 3), in place.
 
         Parameters
@@ -359,17 +359,20 @@ class DFSPHSolver:
             Step (s).
         pi_prev : (N,) float64
             The previous step's ``pi`` in (warm start), this step's out (m^2/s^2).
+        fraction : float
+            Fraction of the density error the particles start with that this step removes, in
+            (0, 1]: below 1 in a sliver of a step (see :data:`filters.sph.dfsph_step.SLIVER`).
         """
         self.density_rate(v)
-        K.density_start(rho, self.rate, rho0, dt, pi_prev, DFSPH_WARM_START_CAP,
+        K.density_start(rho, self.rate, rho0, dt, fraction, pi_prev, DFSPH_WARM_START_CAP,
                         DFSPH_WARM_START, self.src, self.pi, self.active)
         if self.walls is None:
             it, err = self._iterate(self.pi, dt * dt, self.max_density_error, self.min_iterations)
             K.pressure_accel(self.pi, self._x, self.ntab, self.ncnt, self.fw, self.gsum, self.a)
         else:
             gaps, spacing, inv_d, inv_s = self.walls
-            K.wall_start(v, self.ncl, self.cphi, self.cgb, self.cvb, dt, gaps, spacing, inv_d,
-                         inv_s, self.wsrc, self.wall_pressure)
+            K.wall_start(v, self.ncl, self.cphi, self.cgb, self.cvb, dt, fraction, gaps, spacing,
+                         inv_d, inv_s, self.wsrc, self.wall_pressure)
             it, err = self._iterate_walls(self.pi, dt * dt, self.max_density_error)
             K.pressure_accel_wall(self.pi, self.wall_pressure, self._x, self.ntab, self.ncnt,
                                   self.fw, self.gsum, self.ncl, self.cgb, self.a)

@@ -180,13 +180,14 @@ def jacobi_wall(a, x, src, pi, factor, ntab, ncnt, fw, gsum, scale, omega, err, 
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def wall_start(v, ncl, cphi, cgb, cvb, dt, dmin, reach, inv_d, inv_s, wsrc, pw):
+def wall_start(v, ncl, cphi, cgb, cvb, dt, fraction, dmin, reach, inv_d, inv_s, wsrc, pw):
     """Wall constraints of the density solve, per particle ``i`` and wall ``k``: with ``(d, g)``
     the equivalent distance of the wall and its slope (:func:`filters.sph.wall_profile.
     equivalent_distance`), the slack ``(d - dmin_k) g - dt (v_i . cgb_ik - cvb_ik)``
     (fraction of the kernel) that the particle's approach may use up, or :data:`NO_WALL` beyond
     ``dmin_k + reach``; ``dmin`` holds ``dmin_k`` for the whole boundary (k = 0) and for single
-    walls (k >= 1).  The wall pressures start at 0."""
+    walls (k >= 1).  The wall pressures start at 0.  With ``fraction < 1`` a violated constraint
+    (``d < dmin_k``) asks for only that fraction of its violation back in this step."""
     for i in prange(v.shape[0]):
         for k in range(wsrc.shape[1]):
             pw[i, k] = 0.0
@@ -202,8 +203,11 @@ def wall_start(v, ncl, cphi, cgb, cvb, dt, dmin, reach, inv_d, inv_s, wsrc, pw):
             dm = dmin[0] if k == 0 else dmin[1]
             if d > dm + reach or g2 < (DEGENERATE_WALL * g) ** 2:
                 continue
-            wsrc[i, k] = (d - dm) * g - dt * (v[i, 0] * gx + v[i, 1] * gy + v[i, 2] * gz
-                                              - cvb[i, k])
+            gap = d - dm
+            if fraction < 1.0 and gap < 0.0:
+                gap *= fraction
+            wsrc[i, k] = gap * g - dt * (v[i, 0] * gx + v[i, 1] * gy + v[i, 2] * gz
+                                         - cvb[i, k])
         # two single walls on opposite sides of the particle (a film under a landing body):
         # it cannot keep its distance to both, and two opposed wall pressures would only
         # escalate against each other; the density solve alone squeezes the film out
@@ -223,12 +227,17 @@ def wall_start(v, ncl, cphi, cgb, cvb, dt, dmin, reach, inv_d, inv_s, wsrc, pw):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def density_start(rho, rate, rho0, dt, pi_prev, cap, warm, src, pi, active):
+def density_start(rho, rate, rho0, dt, fraction, pi_prev, cap, warm, src, pi, active):
     """Density solve set-up: source ``1 - rho*/rho0`` with ``rho* = rho + dt D rho / D t`` and
-    the warm start ``pi = warm min(pi_prev, cap / dt^2)`` where compressed, else 0."""
+    the warm start ``pi = warm min(pi_prev, cap / dt^2)`` where compressed, else 0.  With
+    ``fraction < 1`` only that fraction of the density error the particles start with is
+    removed in this step (``rho*/rho0 = 1 + fraction (rho/rho0 - 1) + dt D rho / D t / rho0``)."""
     inv2 = 1.0 / (dt * dt)
     for i in prange(rho.shape[0]):
-        adv = rho[i] / rho0 + dt * rate[i]
+        if fraction < 1.0:
+            adv = 1.0 + fraction * (rho[i] / rho0 - 1.0) + dt * rate[i]
+        else:
+            adv = rho[i] / rho0 + dt * rate[i]
         src[i] = 1.0 - adv
         active[i] = True
         pi[i] = warm * min(pi_prev[i], cap * inv2) if adv > 1.0 else 0.0

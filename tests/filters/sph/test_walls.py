@@ -452,7 +452,7 @@ def test_walls_on_opposite_sides_of_a_particle_are_two_walls_and_not_enforced():
     cvb = np.array([[0.0, 0.0, -40.0, 0.0]])  # the body comes down
     wsrc = np.empty((1, 4))
     pw = np.empty((1, 4))
-    args = (np.zeros((1, 3)), ncl, cphi, cgb, cvb, 1e-3, np.array([0.1, 0.3]) * 0.01, 0.01,
+    args = (np.zeros((1, 3)), ncl, cphi, cgb, cvb, 1e-3, 1.0, np.array([0.1, 0.3]) * 0.01, 0.01,
             p.inverse_distance, p.inverse_slope, wsrc, pw)
     wall_start(*args)
     assert wsrc[0, 1] == NO_WALL and wsrc[0, 2] == NO_WALL
