@@ -8,8 +8,8 @@ is packed to ``rho0``, sinks by a tenth of a spacing over the first half second 
 the ``drop`` scene's pool: 854 to 1000 kg/m^3).  :func:`hydrostatic_pressure` gives the pressure
 a resting body of liquid has (the DFSPH solves' warm start, ``SPHLiquid(initial_pressure=)``),
 and :func:`settle` lets a liquid find its resting state before the scene starts: DFSPH steps
-with the velocities reset to zero after each one, a quasi-static relaxation that ends when no
-particle moves by more than a ten-thousandth of a spacing in a step.
+with the velocities damped after each one, a relaxation that ends when no particle moves by
+more than ``tolerance`` spacings in a step or after ``max_time``.
 """
 
 from __future__ import annotations
@@ -80,16 +80,24 @@ def hydrostatic_pressure(positions: ArrayLike, spacing: float,
 
 
 def settle(liquid: SPHLiquid, *, max_time: float = 2.0, tolerance: float = 1e-4,
-           damping: float = 1.0) -> float:
+           damping: float = 0.05) -> float:
     """Let a DFSPH liquid come to rest in place, then start its clock again.
 
-    Steps of the liquid's own size with the velocities set to zero after each (the
-    pressure solves then move the particles only as far as they must to balance gravity at
-    rest density), until no particle moves more than ``tolerance`` spacings in a step or
-    ``max_time`` of simulated time has passed.  Afterwards the state's time and step count
-    are zero, the velocities zero, the step cap that of a fresh start (settling steps can
-    outgrow what the moving liquid's solver affords), and the warm starts and reported
-    pressure those of the settled liquid, so that it continues at rest.
+    Steps of the liquid's own size with the velocities multiplied by ``1 - damping`` after
+    each, until no particle moves more than ``tolerance`` spacings in a step or ``max_time``
+    of simulated time has passed.  Afterwards the state's time and step count are zero, the
+    velocities zero, the step cap that of a fresh start (settling steps can outgrow what the
+    moving liquid's solver affords), and the warm starts and reported pressure those of the
+    settled liquid, so that it continues from its resting state.
+
+    How still a liquid gets is bounded by its pressure solves' tolerance: they leave
+    particles moving by about a thousandth of a spacing a step, so the default ``tolerance``
+    is rarely reached and ``max_time`` ends the settling (check the returned displacement).
+    Measured on a 12 x 12 x 10 pool at 1 cm (``max_density_error`` 1e-3), over the 0.3 s after
+    settling for 0.5 / 1 / 2 / 4 s: median particle speed 7.7e-3 / 4.2e-3 / 1.6e-3 / 1.1e-3 m/s
+    with ``damping`` 0.05, and 2.5e-2 / 1.8e-2 / 1.5e-2 / 1.1e-2 m/s with the velocities
+    zeroed (``damping`` 1, the earlier default: each step then starts the solves from rest and
+    the particles random-walk on their residual).
 
     Parameters
     ----------
@@ -99,6 +107,8 @@ def settle(liquid: SPHLiquid, *, max_time: float = 2.0, tolerance: float = 1e-4,
         Most simulated time spent settling (s), > 0.
     tolerance : float
         Largest displacement in a step (spacings) at which the liquid counts as settled, > 0.
+    damping : float
+        Fraction of the velocities taken away after each step, in (0, 1].
 
     Returns
     -------
@@ -109,6 +119,7 @@ def settle(liquid: SPHLiquid, *, max_time: float = 2.0, tolerance: float = 1e-4,
         raise ValueError("settle needs a liquid with solver='dfsph'")
     max_time = check_range("max_time", max_time, 0.0, 1e3, low_inclusive=False)
     tolerance = check_range("tolerance", tolerance, 0.0, 1.0, low_inclusive=False)
+    damping = check_range("damping", damping, 0.0, 1.0, low_inclusive=False)
     s = liquid.state
     spacing = liquid.model.spacing
     start = s.extra["kinematics"].copy()  # the step cap a fresh start ramps up from
