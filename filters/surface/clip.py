@@ -285,6 +285,12 @@ def cap_loops(points: np.ndarray, edges: np.ndarray, axis: int, lower: np.ndarra
             loops.append(loop)
             continue
         keep = np.flatnonzero(~redundant)
+        if keep.size < 3:
+            # out along the box's edges and back to the same corner (a film of liquid pressed
+            # into a corner of the wall): nothing left to triangulate once reduced, so the
+            # loop stays whole (a sliver, closed by a fan)
+            loops.append(loop)
+            continue
         loop_kept = loop[keep]
         for i, start in enumerate(keep):
             stop = keep[(i + 1) % keep.size]

@@ -183,6 +183,23 @@ def _cap_fan(points, edges, axis, lower, upper):
     return refill_runs(fan, runs)
 
 
+def test_a_cap_loop_out_along_two_box_edges_and_back_is_kept_whole():
+    """A cut loop that leaves a corner of the wall along one box edge, turns back, and does
+    the same along the other edge (liquid pressed into a corner of a tank's ceiling, measured
+    in a splash): reduced to its two corner vertices it left nothing to triangulate and the
+    liquid surface stage raised "a cap triangle along a box edge is missing"; kept whole, its
+    fan covers every edge."""
+    corner = [1.0, 1.0, 1.0]
+    points = np.array([corner, [1.0, 0.8, 1.0], [1.0, 0.6, 1.0], [1.0, 0.9, 1.0], corner,
+                       [0.8, 1.0, 1.0], [0.6, 1.0, 1.0], [0.9, 1.0, 1.0]])
+    edges = np.stack([np.arange(8), np.roll(np.arange(8), -1)], axis=1)
+    loops, runs = cap_loops(points, edges, 2, np.zeros(3), np.ones(3))
+    assert [list(loop) for loop in loops] == [list(range(8))] and not runs
+    tris = _cap_fan(points, edges, 2, np.zeros(3), np.ones(3))
+    directed = {(t[k], t[(k + 1) % 3]) for t in tris for k in range(3)}
+    assert all((u, w) in directed for u, w in edges)
+
+
 def test_a_sphere_cut_by_the_walls_of_a_box_stays_closed_and_flat_on_them():
     """A sphere cut by three walls of a box (the corner of a tank): the kept part closed by
     flat faces on the walls is a closed, consistently oriented mesh whose volume is the
