@@ -115,6 +115,26 @@ def test_bitwise_identical_across_thread_counts():
     np.testing.assert_array_equal(w1.state.positions, w2.state.positions)
 
 
+@pytest.mark.parametrize("solver", ["dfsph", "wcsph"])
+def test_identical_across_thread_counts_with_every_force(solver):
+    # surface tension, XSPH and an external field as well (the claim is for any run)
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    s = 0.01
+    x = lattice((0.03, 0.03, 0.03), (0.11, 0.11, 0.11), s)
+    runs = []
+    for threads in (1, 2):
+        options = dict(kinematic_viscosity=1e-4) if solver == "dfsph" else {}
+        sim = SPHLiquid(x, spacing=s, boundary=box_boundary((0, 0, 0), (0.14, 0.14, 0.14), s),
+                        solver=solver, surface_tension=0.5, xsph=0.1, threads=threads,
+                        external=lambda p, v, t: np.tile([0.5, 0.0, 0.0], (p.shape[0], 1)),
+                        **options)
+        sim.advance_to(0.1)
+        runs.append((sim.state.positions.copy(), sim.state.velocities.copy()))
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_default_threads_follow_the_callers_numba_threads(monkeypatch):
     """threads=None: a liquid of >= 20,000 particles steps on as many threads as Numba uses when
     the step starts, so ``numba.set_num_threads`` lowers it (the first run's look-ahead steps on
