@@ -147,13 +147,7 @@ def lattice_volume(spacing: float, support_m: float, kernel: str = "cubic") -> f
     """
     spacing = check_range("spacing", spacing, 0.0, math.inf, low_inclusive=False)
     support = check_range("support_m", support_m, 0.0, math.inf, low_inclusive=False)
-    kind = kernel_id(kernel)
-    n = int(math.ceil(support / spacing)) + 1
-    g = np.arange(-n, n + 1) * spacing
-    X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
-    r = np.sqrt(X * X + Y * Y + Z * Z).ravel()
-    total = _sum_w(kind, r, support)
-    return 1.0 / total
+    return _lattice_sum_volume(np.full(3, spacing), support, kernel_id(kernel))
 
 
 @njit(cache=True)
@@ -465,16 +459,14 @@ def mesh_boundary(vertices: ArrayLike, faces: ArrayLike, spacing: float, *,
     if not keep.any():
         raise ValueError(f"no lattice point of spacing {spacing:g} m falls inside the mesh; "
                          f"decrease spacing (an open surface encloses none)")
-    if (step == spacing).all():
-        volume = lattice_volume(spacing, support_factor * spacing, kernel)
-    else:
-        volume = _stretched_lattice_volume(step, support_factor * spacing, kernel_id(kernel))
+    volume = _lattice_sum_volume(step, support_factor * spacing, kernel_id(kernel))
     points = grid[keep]
     return BoundaryParticles(points, np.full(points.shape[0], volume), n[keep])
 
 
-def _stretched_lattice_volume(step, h, kind):
-    """:func:`lattice_volume` of a lattice with the steps ``step`` (3,) along the axes (m^3)."""
+def _lattice_sum_volume(step, h, kind):
+    """``1 / sum_j W(x_j)`` over a lattice with the steps ``step`` (3,) along the axes (m^3):
+    :func:`lattice_volume` with a step of its own per axis."""
     axes = [np.arange(-m, m + 1) * d for d, m in zip(step, np.ceil(h / step).astype(int) + 1,
                                                      strict=True)]
     X, Y, Z = np.meshgrid(*axes, indexing="ij")
