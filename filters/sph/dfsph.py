@@ -204,6 +204,9 @@ class DFSPHSolver:
         self._n = -1
         self._cap = 40
         self._viscosity = ImplicitViscosity()
+        #: Bodies moved inside the density solve (:class:`filters.coupling.strong.RigidLink`),
+        #: or None: every boundary particle keeps its velocity through the solve.
+        self.link = None
 
     def _allocate(self, n, cap):
         if n != self._n:
@@ -303,8 +306,11 @@ class DFSPHSolver:
         it = 0
         err = math.inf
         worst = math.inf
+        link = self.link
         while it < self.max_iterations and (it < self.min_iterations or err > tol
                                             or worst > DFSPH_WALL_TOLERANCE):
+            if link is not None:
+                link.update(pi, pw, scale)
             K.pressure_accel_wall(pi, pw, self._x, self.ntab, self.ncnt, self.fw, self.gsum,
                                   self.ncl, self.cgb, self.a)
             err, worst = K.jacobi_wall(self.a, self._x, self.src, pi, self.factor, self.ntab,
@@ -377,6 +383,8 @@ class DFSPHSolver:
             gaps, spacing, inv_d, inv_s = self.walls
             K.wall_start(v, self.ncl, self.cphi, self.cgb, self.cvb, dt, fraction, gaps, spacing,
                          inv_d, inv_s, self.wsrc, self.wall_pressure)
+            if self.link is not None:
+                self.link.begin(self, dt, self.pi_v)
             it, err = self._iterate_walls(self.pi, dt * dt, self.max_density_error)
             K.pressure_accel_wall(self.pi, self.wall_pressure, self._x, self.ntab, self.ncnt,
                                   self.fw, self.gsum, self.ncl, self.cgb, self.a)

@@ -173,22 +173,58 @@ def floating_box():
                                density=500.0)],
                          colliders=Colliders().add(~Box((0, 0, 0), tank)))
     sim = _pool(bodies, s=s, tank=tank, depth=0.06)
-    _run(sim, 1.2, _no_liquid_inside)
+    vz = []
+
+    def record(sim):
+        _no_liquid_inside(sim)
+        vz.append(bodies.state.velocities[0, 2])
+
+    _run(sim, 1.2, record)
     x = sim.liquid.state.positions
     c = bodies.state.positions[0]
     level = _water_level(x, s, c, size / 2 - s)
+    vz = np.array(vz[len(vz) // 2:])
     return {"draft": level - (c[2] - height / 2), "archimedes": 0.5 * height,
             "speed": float(np.linalg.norm(bodies.state.velocities[0])),
-            "tilt": float(abs(bodies.state.extra["orientations"][0, 0]))}
+            "tilt": float(abs(bodies.state.extra["orientations"][0, 0])),
+            "jitter": float(np.abs(vz[1:-1] - 0.5 * (vz[:-2] + vz[2:])).max())}
 
 
 def test_a_floating_box_comes_to_rest_near_its_archimedes_draft(floating_box):
-    # measured: 0.93 of Archimedes' draft at 4 spacings of draft (the issue asks for 5 %, not
-    # met: see the held box); upright; at rest but for the jitter of the per-step pressure
-    # forces (measured 0.023 m/s)
+    # measured: 0.88 of Archimedes' draft at 4 spacings of draft at t = 1.2 s, still bobbing
+    # by +-0.4 mm (the issue asks for 5 %, not met: see the held box); upright; nearly at rest
+    # (measured 0.004 m/s)
     assert abs(floating_box["draft"] / floating_box["archimedes"] - 1.0) < 0.15, floating_box
     assert floating_box["speed"] < 0.05
     assert floating_box["tilt"] > 0.999
+
+
+def test_a_floating_box_moves_smoothly_from_step_to_step(floating_box):
+    # the bodies move inside the density solve (filters.coupling.strong): the liquid's step
+    # expects the motion the body makes with the force it gets.  Measured over the last 0.6 s:
+    # the vertical velocity departs from the mean of its neighbours in time by at most
+    # 0.0009 m/s; with the bodies moved after the liquid's step (the coupling before) it
+    # alternated from step to step by up to 0.064 m/s (0.025 on average)
+    assert floating_box["jitter"] < 0.005, floating_box
+
+
+def test_the_density_solve_moves_a_body_with_the_force_it_then_gets():
+    # two turning boxes in a pool: after each step, the force and torque the density solve's
+    # last sweep moved each body with (its pressures, wall pressures and the divergence
+    # solve's) are the force and torque applied to the body (the liquid's boundary forces
+    # summed over its particles; no viscosity here, which is applied but not in the solve)
+    tank = (0.12, 0.12, 0.2)
+    bodies = RigidBodies([_box(0.04, (0.05, 0.06, 0.07), density=700.0),
+                          _box(0.04, (0.03, 0.03, 0.02), density=1200.0)],
+                         colliders=Colliders().add(~Box((0, 0, 0), tank)),
+                         angular_velocities=[[0.0, 3.0, 1.0], [1.0, 0.0, 0.0]])
+    sim = _pool(bodies, tank=tank, nu=0.0)
+    solver = sim.liquid._stepper.solver
+    for _ in range(10):
+        sim.step(sim.max_step())
+        w = sim._link.wrench(solver.pi, solver.wall_pressure)
+        assert np.abs(w[:, 2]).min() > 0.05  # the liquid pushes each box (N)
+        assert np.abs(sim.last_body_forces[0] - w).max() < 1e-12 * np.abs(w).max()
 
 
 def test_a_heavy_box_sinks_to_the_floor():
@@ -268,6 +304,8 @@ def test_bad_input_is_refused():
         Coupled(alone, bodies)
     with pytest.raises(TypeError, match="RigidBodies or FEMSimulation"):
         Coupled(alone, [object()])
+    with pytest.raises(TypeError, match="strong"):
+        Coupled(alone, bodies, strong="yes")
     other = RigidBodies([_box(0.06, (0.08, 0.08, 0.15))], gravity=(0.0, 0.0, -1.0))
     liquid = SPHLiquid(x, spacing=s, boundary=coupled_boundary(walls, other, s), solver="dfsph")
     with pytest.raises(ValueError, match="gravity"):
