@@ -52,8 +52,11 @@ from .strong import RigidLink
 __all__ = ["Coupled", "CoupledModel", "coupled_boundary", "VISCOSITY_TOLERANCE", "BODY_GAP"]
 
 #: Relative residual of the coupled liquid's implicit viscosity solve (the liquid's own default
-#: is 1e-3): the viscous forces on the bodies then match the momentum the fluid lost to 1e-6.
-VISCOSITY_TOLERANCE = 1e-6
+#: is 1e-3): the viscous forces on the bodies then match the momentum the fluid lost (measured:
+#: a box shot through a blob without gravity, total momentum kept to 5e-5 of it; 2e-3 at 1e-3,
+#: 8e-7 at 1e-6, which took one more iteration a step, 2.9 against 1.9 in the coupled
+#: benchmark's pool).
+VISCOSITY_TOLERANCE = 1e-4
 #: Where a particle found inside a rigid body is put back: this many spacings outside it.
 BODY_GAP = 0.1
 

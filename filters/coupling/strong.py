@@ -114,29 +114,52 @@ def _build(sel, owner, xb, volb, nrmb, centers, x, start, origin, cell, dims, h,
 
 
 @njit(cache=True, error_model="numpy")
-def _wrench(touched, nt, nslot, sbody, skey, sgt, p, pw, ncl, walls, mass, out):
+def _compact(touched, nt, nslot, sbody, skey, sgt, src, wsrc, rstart, rbody, rkey, rgt, tsrc,
+             twsrc):
+    """The slots of the particles ``touched[:nt]`` (in that order) as consecutive rows (rows
+    ``rstart[t]:rstart[t + 1]`` are particle ``touched[t]``'s), and their sources now."""
+    r = 0
+    for t in range(nt):
+        i = touched[t]
+        rstart[t] = r
+        tsrc[t] = src[i]
+        for k in range(wsrc.shape[1]):
+            twsrc[t, k] = wsrc[i, k]
+        for s in range(nslot[i]):
+            rbody[r] = sbody[i, s]
+            rkey[r] = skey[i, s]
+            for c in range(6):
+                rgt[r, c] = sgt[i, s, c]
+            r += 1
+    rstart[nt] = r
+
+
+@njit(cache=True, error_model="numpy")
+def _wrench(touched, nt, rstart, rbody, rkey, rgt, p, pw, ncl, walls, mass, out):
     """Add to ``out`` (B, 6) the force and torque of the pressures ``p`` (and the wall pressures
-    ``pw`` where ``walls``) on the bodies: ``m (p_i + pw_i0 + pw_ik) (G, T)`` per slot."""
+    ``pw`` where ``walls``) on the bodies: ``m (p_i + pw_i0 + pw_ik) (G, T)`` per row."""
     for t in range(nt):
         i = touched[t]
         p0 = p[i]
         if walls and ncl[i] > 0:
             p0 += pw[i, 0]
-        for s in range(nslot[i]):
-            k = skey[i, s]
+        for r in range(rstart[t], rstart[t + 1]):
+            k = rkey[r]
             q = p0 + (pw[i, k] if walls and k > 0 else 0.0)
-            body = sbody[i, s]
+            body = rbody[r]
             for c in range(6):
-                out[body, c] += mass * q * sgt[i, s, c]
+                out[body, c] += mass * q * rgt[r, c]
 
 
 @njit(cache=True, error_model="numpy")
-def _update(touched, nt, nslot, sbody, skey, sgt, pi, pw, ncl, mass, base, inv_mass,
-            inv_inertia, gravity, scale, src0, wsrc0, src, wsrc, acc):
+def _update(touched, nt, rstart, rbody, rkey, rgt, pi, pw, ncl, mass, base, inv_mass,
+            inv_inertia, gravity, scale, tsrc, twsrc, src, wsrc, acc):
     """One sweep's sources: the bodies' wrench under ``pi`` and ``pw`` (plus ``base``), their
-    accelerations ``acc`` (B, 6: linear, angular), then :func:`_sources`."""
+    accelerations ``acc`` (B, 6: linear, angular), and with them the density sources ``src``
+    and wall slacks ``wsrc`` of the particles next to a body (``tsrc``, ``twsrc``: theirs
+    without the bodies' motion)."""
     w = base.copy()
-    _wrench(touched, nt, nslot, sbody, skey, sgt, pi, pw, ncl, True, mass, w)
+    _wrench(touched, nt, rstart, rbody, rkey, rgt, pi, pw, ncl, True, mass, w)
     for b in range(w.shape[0]):
         moving = inv_mass[b] > 0.0
         for c in range(3):
@@ -144,28 +167,22 @@ def _update(touched, nt, nslot, sbody, skey, sgt, pi, pw, ncl, mass, base, inv_m
         for c in range(3):
             acc[b, 3 + c] = (inv_inertia[b, c, 0] * w[b, 3] + inv_inertia[b, c, 1] * w[b, 4]
                              + inv_inertia[b, c, 2] * w[b, 5])
-    _sources(touched, nt, nslot, sbody, skey, sgt, acc, scale, src0, wsrc0, src, wsrc)
-
-
-@njit(cache=True, error_model="numpy")
-def _sources(touched, nt, nslot, sbody, skey, sgt, acc, scale, src0, wsrc0, src, wsrc):
-    """The sweep's sources with the bodies accelerating at ``acc`` (B, 6: linear, angular)."""
     for t in range(nt):
         i = touched[t]
         for k in range(wsrc.shape[1]):
-            wsrc[i, k] = wsrc0[i, k]
+            wsrc[i, k] = twsrc[t, k]
         beta = 0.0
-        for s in range(nslot[i]):
-            body = sbody[i, s]
+        for r in range(rstart[t], rstart[t + 1]):
+            body = rbody[r]
             bs = 0.0
             for c in range(6):
-                bs += acc[body, c] * sgt[i, s, c]
+                bs += acc[body, c] * rgt[r, c]
             beta += bs
-            k = skey[i, s]
-            if k > 0 and wsrc0[i, k] < NO_WALL:
+            k = rkey[r]
+            if k > 0 and twsrc[t, k] < NO_WALL:
                 wsrc[i, k] += scale * bs
-        src[i] = src0[i] + scale * beta
-        if wsrc0[i, 0] < NO_WALL:
+        src[i] = tsrc[t] + scale * beta
+        if twsrc[t, 0] < NO_WALL:
             wsrc[i, 0] += scale * beta
 
 
@@ -234,13 +251,24 @@ class RigidLink:
                             lo, cell, dims, m.support, solver.kind, solver.ncl, solver.cn,
                             self.nslot, self.sbody, self.skey, self.sgt, self.touched,
                             self.count)
+        nt = self.count
+        touched = np.sort(self.touched[:nt])  # in memory order for the sweeps
+        rows = int(self.nslot[touched].sum())
+        self.rstart = np.empty(nt + 1, dtype=np.int64)
+        self.rbody = np.empty(rows, dtype=np.int32)
+        self.rkey = np.empty(rows, dtype=np.int32)
+        self.rgt = np.empty((rows, 6))
+        self.tsrc = np.empty(nt)
+        self.twsrc = np.empty((nt, solver.wsrc.shape[1]))
+        _compact(touched, nt, self.nslot, self.sbody, self.skey, self.sgt, solver.src,
+                 solver.wsrc, self.rstart, self.rbody, self.rkey, self.rgt, self.tsrc,
+                 self.twsrc)
+        self.rows_of = touched
         self.solver = solver
         self.mass = m.mass
         self.gravity = np.asarray(liquid.gravity, dtype=np.float64)
-        self.src0 = solver.src.copy()
-        self.wsrc0 = solver.wsrc.copy()
         self.base[:] = 0.0
-        _wrench(self.touched, self.count, self.nslot, self.sbody, self.skey, self.sgt, pi_v,
+        _wrench(touched, nt, self.rstart, self.rbody, self.rkey, self.rgt, pi_v,
                 solver.wall_pressure, solver.ncl, False, m.mass, self.base)
 
     def wrench(self, pi: np.ndarray, pw: np.ndarray) -> np.ndarray:
@@ -248,7 +276,7 @@ class RigidLink:
         density solve's pressures ``pi`` and wall pressures ``pw`` and the divergence solve's
         pressures exert on the bodies (the viscous force is not in it)."""
         w = self.base.copy()
-        _wrench(self.touched, self.count, self.nslot, self.sbody, self.skey, self.sgt, pi, pw,
+        _wrench(self.rows_of, self.count, self.rstart, self.rbody, self.rkey, self.rgt, pi, pw,
                 self.solver.ncl, True, self.mass, w)
         return w
 
@@ -256,6 +284,6 @@ class RigidLink:
         """The sources of the next sweep, from the bodies' motion under the pressures ``pi``
         and wall pressures ``pw`` of the last one."""
         s = self.solver
-        _update(self.touched, self.count, self.nslot, self.sbody, self.skey, self.sgt, pi, pw,
+        _update(self.rows_of, self.count, self.rstart, self.rbody, self.rkey, self.rgt, pi, pw,
                 s.ncl, self.mass, self.base, self.inv_mass, self.inv_inertia, self.gravity,
-                scale, self.src0, self.wsrc0, s.src, s.wsrc, self.acc)
+                scale, self.tsrc, self.twsrc, s.src, s.wsrc, self.acc)
