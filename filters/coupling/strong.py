@@ -34,8 +34,9 @@ from ..sph.neighbourhood import cell_range, wall_key, wall_of
 
 __all__ = ["RigidLink", "SLOTS"]
 
-#: Slots (a body and one of its walls as a particle sees it) per fluid particle; more merge
-#: into the last.
+#: Slots (a body and one of its walls as a particle sees it) per fluid particle; a further wall
+#: of a body goes into one of that body's slots, a further body is left out of the particle's
+#: sources (five walls or bodies within one kernel support: not met in the scenes).
 SLOTS = 4
 
 
@@ -198,8 +199,8 @@ class RigidLink:
         The DFSPH liquid.
     owner : (M,) int64
         Per boundary particle (in the order the liquid was built with), the rigid body that
-        moves it (a number over all the coupled rigid bodies), or -1 (walls, fixed and elastic
-        bodies).
+        moves it (a number over all the coupled rigid bodies; a fixed body's inverse mass is
+        0), or -1 (walls, elastic bodies).
     """
 
     def __init__(self, liquid, owner: np.ndarray):
@@ -233,7 +234,7 @@ class RigidLink:
             self.count = 0
             self._n = n
 
-    def begin(self, solver, dt: float, pi_v: np.ndarray) -> None:
+    def begin(self, solver, pi_v: np.ndarray) -> None:
         """Set up one density solve: the slots of the fluid particles next to a body, the
         sources without the bodies' motion, and the bodies' acceleration before the solve
         (gravity and the divergence solve's pressures ``pi_v``)."""
