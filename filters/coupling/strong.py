@@ -25,12 +25,18 @@ gives it.  Fixed bodies, elastic bodies and walls keep their velocities within t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit
 
 from ..kernels import kernel_dw
 from ..sph.dfsph_kernels import NO_WALL
 from ..sph.neighbourhood import cell_range, wall_key, wall_of
+
+if TYPE_CHECKING:
+    from ..sph.dfsph import DFSPHSolver
+    from ..sph.liquid import SPHLiquid
 
 __all__ = ["RigidLink", "SLOTS"]
 
@@ -203,7 +209,7 @@ class RigidLink:
         0), or -1 (walls, elastic bodies).
     """
 
-    def __init__(self, liquid, owner: np.ndarray):
+    def __init__(self, liquid: SPHLiquid, owner: np.ndarray):
         self.liquid = liquid
         self.owner = np.ascontiguousarray(owner, dtype=np.int64)
         n_bodies = int(self.owner.max(initial=-1)) + 1
@@ -234,7 +240,7 @@ class RigidLink:
             self.count = 0
             self._n = n
 
-    def begin(self, solver, pi_v: np.ndarray) -> None:
+    def begin(self, solver: DFSPHSolver, pi_v: np.ndarray) -> None:
         """Set up one density solve: the slots of the fluid particles next to a body, the
         sources without the bodies' motion, and the bodies' acceleration before the solve
         (gravity and the divergence solve's pressures ``pi_v``)."""
