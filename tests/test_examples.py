@@ -120,7 +120,24 @@ def _integrators(out, stdout):
         assert "energy at the end -" in lines[scheme]
 
 
+def _bodies_in_water(out, stdout):
+    # small size: 2 cm spacing, 0.8 s; the ball (600 kg/m^3, radius 4 cm) afloat, the brick
+    # (2,000 kg/m^3, 4 cm high) down on the floor, both meshes in the bodies series at every frame
+    times, water = read_series(out / "particles.pvd")
+    _, bodies = read_series(out / "bodies.pvd")
+    assert len(times) == len(bodies) == 25 and abs(times[-1] - 0.8) < 1e-9
+    assert all(int(w.field_data["container_corrections"][0]) == 0 for w in water)
+    z = np.asarray(water[-1].field_data["body_position"]).reshape(-1, 3)[:, 2]
+    level = np.percentile(np.asarray(water[-1].points)[:, 2], 99) + 0.01
+    assert z[0] + 0.04 > level > z[0] - 0.04  # the ball across the surface
+    assert z[1] - 0.02 < 0.02  # the brick within a spacing of the floor
+    body = np.asarray(bodies[-1].point_data["body"])
+    assert sorted(set(body.tolist())) == [0, 1] and bodies[-1].n_cells > 0
+    assert "the ball's top" in stdout
+
+
 CHECKS = {
+    "bodies_in_water": _bodies_in_water,
     "custom_simulation": _custom_simulation,
     "cloth_from_your_mesh": _cloth,
     "dask_surfaces": _dask,
