@@ -193,15 +193,8 @@ class RigidPart:
     def dynamics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per body: centre of mass (B, 3) (m), inverse mass (B,) (1/kg; 0 for a fixed body)
         and world inverse inertia tensor (B, 3, 3) (1/(kg m^2); 0 for a fixed body)."""
-        sim = self.sim
-        bodies = sim.model.bodies
-        rot = rotation_matrices(sim.state.extra["orientations"])
-        inv_mass = np.array([0.0 if b.fixed else 1.0 / b.mass for b in bodies])
-        inv_inertia = np.zeros((len(bodies), 3, 3))
-        for k, body in enumerate(bodies):
-            if not body.fixed:
-                inv_inertia[k] = rot[k] @ np.linalg.inv(body.inertia) @ rot[k].T
-        return np.array(sim.state.positions, dtype=np.float64), inv_mass, inv_inertia
+        inv_mass, inv_inertia = self.sim.inverse_masses()
+        return np.array(self.sim.state.positions, dtype=np.float64), inv_mass, inv_inertia
 
     def push(self, points: np.ndarray, forces: np.ndarray) -> np.ndarray:
         """Apply the liquid's ``forces`` (S, 3) (N) at the samples' ``points`` (S, 3) for the next

@@ -299,6 +299,13 @@ class RigidBodies(Simulation):
         """Forget the forces applied since the last step."""
         self._pending[:] = 0.0
 
+    def inverse_masses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Inverse masses (B,) (1/kg) and world inverse inertia tensors ``R I^-1 R^T`` (B, 3, 3)
+        (1/(kg m^2)) at the bodies' orientations now; zero for fixed bodies."""
+        inv_i = np.empty((self.n_bodies, 3, 3))
+        world_inverse_inertia(self._rotations(), self._inv_inertia, self._fixed, inv_i)
+        return self._inv_mass.copy(), inv_i
+
     # -- stepping ---------------------------------------------------------------------------
     def _rotations(self, orientations=None):
         q = self.state.extra["orientations"] if orientations is None else orientations

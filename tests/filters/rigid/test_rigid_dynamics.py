@@ -186,3 +186,15 @@ def test_ball_samples_and_vertices_use_one_body_frame():
     r = np.linalg.norm(x - [0, 0, 1.0], axis=1)
     assert r.max() < 0.1 and r.min() > 0.1 - 2 * 0.03 - 0.01
     np.testing.assert_allclose(x.mean(axis=0), [0.0, 0.0, 1.0], atol=0.01)
+
+
+def test_inverse_masses_are_those_of_the_turned_inertia_and_zero_when_fixed():
+    q = quaternion_from_axis_angle((1.0, 2.0, 0.5), 0.7)
+    sim = RigidBodies([_box_body(), _box_body(fixed=True)], orientations=[q, q])
+    inv_mass, inv_inertia = sim.inverse_masses()
+    body = sim.model.bodies[0]
+    r = rotation_matrices(np.asarray([q]))[0]
+    assert inv_mass[0] == pytest.approx(1.0 / body.mass) and inv_mass[1] == 0.0
+    np.testing.assert_allclose(inv_inertia[0], np.linalg.inv(r @ body.inertia @ r.T),
+                               rtol=1e-12, atol=0.0)
+    assert not inv_inertia[1].any()
