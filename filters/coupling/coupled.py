@@ -219,10 +219,13 @@ class Coupled(Simulation):
     def _make_link(self):
         owner = np.full(self.liquid.boundary_set.n_points, -1, dtype=np.int64)
         count = 0
+        self._link_rows = []  # per part, its bodies' rows of the link (None: not linked)
         for part, (a, b) in zip(self.parts, self.model.boundary_ranges, strict=True):
             if part.kind != "rigid":
+                self._link_rows.append(None)
                 continue
             owner[a:b] = part.owner + count
+            self._link_rows.append(slice(count, count + part.sim.n_bodies))
             count += part.sim.n_bodies
         return RigidLink(self.liquid, owner) if count else None
 
@@ -296,16 +299,25 @@ class Coupled(Simulation):
     def _step(self, dt: float) -> None:
         where = self._where
         solver = self.liquid._stepper.solver
-        if self._link is not None:
+        link = self._link
+        if link is not None:
             self._set_link()
-        solver.link = self._link  # for this step only: the liquid stepped alone has no bodies
+            link.ready = False
+        solver.link = link  # for this step only: the liquid stepped alone has no bodies
         try:
             self.liquid.step(dt)
         finally:
             solver.link = None
+        # the rigid bodies' force and torque as the density solve summed them (its pairs, the
+        # same sum as the liquid's boundary forces); elastic bodies take them per particle
+        linked = link.forces() if link is not None else None
         for k, (part, idx) in enumerate(zip(self.parts, self._indices, strict=True)):
-            forces = self.liquid.boundary_forces(idx)
-            self.last_body_forces[k] = part.push(where[k], forces)
+            rows = self._link_rows[k] if linked is not None else None
+            if rows is not None:
+                self.last_body_forces[k] = part.push_wrenches(linked[rows])
+            else:
+                forces = self.liquid.boundary_forces(idx)
+                self.last_body_forces[k] = part.push(where[k], forces)
             part.step(dt)
             part.sim.state.time = self.liquid.state.time
         s = self.liquid.state

@@ -201,6 +201,12 @@ class RigidPart:
         step; returns the force and torque per body, (B, 6)."""
         return self.sim.apply_point_forces(points, forces, self.owner)
 
+    def push_wrenches(self, wrenches: np.ndarray) -> np.ndarray:
+        """Apply the liquid's force and torque per body, (B, 6), for the next step; returns
+        them."""
+        self.sim.apply_wrenches(wrenches)
+        return wrenches
+
     def step(self, dt: float) -> None:
         """Advance the bodies by ``dt`` (s)."""
         self.sim.step(dt)

@@ -48,14 +48,18 @@ SLOTS = 4
 
 @njit(cache=True, error_model="numpy")
 def _build(sel, owner, xb, volb, nrmb, centers, x, start, origin, cell, dims, h, kind, ncl, cn,
-           nslot, sbody, skey, sgt, touched, ntouched):
+           nslot, sbody, skey, sgt, touched, ntouched, vv, vb, fvolb, nu_b, mass, visc, lost):
     """``G_iB`` and ``T_iB`` per fluid particle ``i`` and (body, wall) slot; returns how many
-    fluid particles have a slot (listed in ``touched``)."""
+    fluid particles have a slot (listed in ``touched``).  Adds to ``visc`` (B, 6) the force and
+    torque of the liquid's viscosity on the bodies, with the fluid velocities ``vv`` after the
+    viscosity solve (the boundary term of :func:`filters.sph.boundary_set.boundary_forces`),
+    and to ``lost[0]`` the pairs left out of the slots (a fifth body or wall of a particle)."""
     for t in range(ntouched):
         nslot[touched[t]] = 0
     n = x.shape[0]
     cap = sbody.shape[1]
     h2 = h * h
+    eps = 0.01 * 0.25 * h2
     inv = 1.0 / cell
     nt = 0
     if n == 0:
@@ -72,6 +76,10 @@ def _build(sel, owner, xb, volb, nrmb, centers, x, start, origin, cell, dims, h,
         x0, x1 = cell_range(qx, origin[0], inv, dims[0])
         y0, y1 = cell_range(qy, origin[1], inv, dims[1])
         z0, z1 = cell_range(qz, origin[2], inv, dims[2])
+        viscous = nu_b > 0.0 and fvolb[b] > 0.0
+        fx = 0.0
+        fy = 0.0
+        fz = 0.0
         for iz in range(z0, z1 + 1):
             for iy in range(y0, y1 + 1):
                 row = (iz * dims[1] + iy) * dims[0]
@@ -83,7 +91,15 @@ def _build(sel, owner, xb, volb, nrmb, centers, x, start, origin, cell, dims, h,
                     if r2 >= h2 or r2 == 0.0:
                         continue
                     r = np.sqrt(r2)
-                    g = volb[b] * kernel_dw(kind, r, h) / r  # V_b grad_i W_ib = g (x_i - x_b)
+                    dw = kernel_dw(kind, r, h) / r
+                    if viscous:
+                        u = ((vv[i, 0] - vb[b, 0]) * dx + (vv[i, 1] - vb[b, 1]) * dy
+                             + (vv[i, 2] - vb[b, 2]) * dz)
+                        c = -mass * 10.0 * nu_b * fvolb[b] * dw * u / (r2 + eps)
+                        fx += c * dx
+                        fy += c * dy
+                        fz += c * dz
+                    g = volb[b] * dw  # V_b grad_i W_ib = g (x_i - x_b)
                     gx = g * dx
                     gy = g * dy
                     gz = g * dz
@@ -110,6 +126,7 @@ def _build(sel, owner, xb, volb, nrmb, centers, x, start, origin, cell, dims, h,
                             while s >= 0 and sbody[i, s] != body:
                                 s -= 1
                             if s < 0:
+                                lost[0] += 1
                                 continue
                     sgt[i, s, 0] += gx
                     sgt[i, s, 1] += gy
@@ -117,6 +134,12 @@ def _build(sel, owner, xb, volb, nrmb, centers, x, start, origin, cell, dims, h,
                     sgt[i, s, 3] += ry * gz - rz * gy
                     sgt[i, s, 4] += rz * gx - rx * gz
                     sgt[i, s, 5] += rx * gy - ry * gx
+        visc[body, 0] += fx
+        visc[body, 1] += fy
+        visc[body, 2] += fz
+        visc[body, 3] += ry * fz - rz * fy
+        visc[body, 4] += rz * fx - rx * fz
+        visc[body, 5] += rx * fy - ry * fx
     return nt
 
 
@@ -219,6 +242,12 @@ class RigidLink:
         self.inv_inertia = np.zeros((n_bodies, 3, 3))
         self.base = np.zeros((n_bodies, 6))
         self.acc = np.zeros((n_bodies, 6))
+        #: The viscous force and torque of the liquid on each body in the step being taken
+        #: (B, 6), from :meth:`begin`.
+        self.viscous = np.zeros((n_bodies, 6))
+        self.lost = np.zeros(1, dtype=np.int64)
+        #: Whether :meth:`begin` ran in the step being taken (:meth:`forces` answers).
+        self.ready = False
         self._n = -1
         self.count = 0
 
@@ -240,10 +269,11 @@ class RigidLink:
             self.count = 0
             self._n = n
 
-    def begin(self, solver: DFSPHSolver, pi_v: np.ndarray) -> None:
+    def begin(self, solver: DFSPHSolver, pi_v: np.ndarray, v: np.ndarray) -> None:
         """Set up one density solve: the slots of the fluid particles next to a body, the
-        sources without the bodies' motion, and the bodies' acceleration before the solve
-        (gravity and the divergence solve's pressures ``pi_v``)."""
+        sources without the bodies' motion, the bodies' acceleration before the solve
+        (gravity and the divergence solve's pressures ``pi_v``) and the viscous force of the
+        liquid at velocities ``v`` (after its viscosity solve) on them."""
         liquid = self.liquid
         x = liquid.state.positions
         n = x.shape[0]
@@ -253,11 +283,16 @@ class RigidLink:
         sel = np.flatnonzero(owner >= 0)
         start, lo, cell, dims = liquid._stepper.grid
         m = liquid.model
+        self.viscous[:] = 0.0
+        self.lost[0] = 0
         self.count = _build(sel, np.ascontiguousarray(owner[sel]), bset.sorted_points,
                             bset.sorted_volumes, bset.sorted_normals, self.centers, x, start,
                             lo, cell, dims, m.support, solver.kind, solver.ncl, solver.cn,
                             self.nslot, self.sbody, self.skey, self.sgt, self.touched,
-                            self.count)
+                            self.count, v, bset.sorted_velocities,
+                            bset.sorted_friction_volumes, liquid._stepper.nu_b, m.mass,
+                            self.viscous, self.lost)
+        self.ready = True
         nt = self.count
         touched = np.sort(self.touched[:nt])  # in memory order for the sweeps
         rows = int(self.nslot[touched].sum())
@@ -286,6 +321,17 @@ class RigidLink:
         _wrench(self.rows_of, self.count, self.rstart, self.rbody, self.rkey, self.rgt, pi, pw,
                 self.solver.ncl, True, self.mass, w)
         return w
+
+    def forces(self) -> np.ndarray | None:
+        """Force (N) and torque (N m, about the centre of mass) per body, (B, 6), of the liquid
+        in the step just taken: its converged pressures and wall pressures (:meth:`wrench`)
+        plus its viscosity, the same sum as :func:`filters.sph.boundary_set.boundary_forces`
+        over the bodies' particles without a second pass over the pairs; None where the step
+        did not set the link up or a pair was left out of the slots."""
+        if not self.ready or self.lost[0]:
+            return None
+        s = self.solver
+        return self.wrench(s.pi, s.wall_pressure) + self.viscous
 
     def update(self, pi: np.ndarray, pw: np.ndarray, scale: float) -> None:
         """The sources of the next sweep, from the bodies' motion under the pressures ``pi``

@@ -259,6 +259,15 @@ class RigidBodies(Simulation):
         b = self._body_index(body)
         self._pending[b, 3:] += check_finite_vector("torque", torque, 3)
 
+    def apply_wrenches(self, wrenches: ArrayLike) -> None:
+        """Apply a force (N) and a torque (N m, world, about the centre of mass) to every body
+        for the next step, ``wrenches`` (B, 6): force then torque per row."""
+        w = np.asarray(wrenches, dtype=np.float64)
+        if w.shape != (self.n_bodies, 6) or not np.isfinite(w).all():
+            raise ValueError(f"wrenches must be a finite ({self.n_bodies}, 6) array, "
+                             f"got shape {w.shape}")
+        self._pending += w
+
     def apply_point_forces(self, points: ArrayLike, forces: ArrayLike,
                            bodies: ArrayLike) -> np.ndarray:
         """Apply forces at many points for the next step (a liquid's forces on the samples).

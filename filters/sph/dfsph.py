@@ -384,7 +384,7 @@ class DFSPHSolver:
             K.wall_start(v, self.ncl, self.cphi, self.cgb, self.cvb, dt, fraction, gaps, spacing,
                          inv_d, inv_s, self.wsrc, self.wall_pressure)
             if self.link is not None:
-                self.link.begin(self, self.pi_v)
+                self.link.begin(self, self.pi_v, v)
             it, err = self._iterate_walls(self.pi, dt * dt, self.max_density_error)
             K.pressure_accel_wall(self.pi, self.wall_pressure, self._x, self.ntab, self.ncnt,
                                   self.fw, self.gsum, self.ncl, self.cgb, self.a)

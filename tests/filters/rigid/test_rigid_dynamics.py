@@ -144,6 +144,26 @@ def test_apply_point_forces_is_what_the_next_step_feels():
         sim.apply_point_forces(x, f[:-1], 0)
 
 
+def test_apply_wrenches_is_the_same_as_forces_and_torques():
+    sims = [RigidBodies([_box_body(), _box_body()], positions=[[0, 0, 0], [1, 0, 0]],
+                        gravity=(0, 0, -1.0)) for _ in range(2)]
+    w = np.array([[1.0, 0.0, 2.0, 0.0, 0.3, 0.0], [0.0, -1.0, 0.0, 0.1, 0.0, 0.2]])
+    sims[0].apply_wrenches(w)
+    for b in range(2):
+        sims[1].apply_force(b, w[b, :3])
+        sims[1].apply_torque(b, w[b, 3:])
+    for sim in sims:
+        sim.step(0.1)
+    assert np.array_equal(sims[0].state.velocities, sims[1].state.velocities)
+    assert np.array_equal(sims[0].state.extra["angular_velocities"],
+                          sims[1].state.extra["angular_velocities"])
+    assert np.abs(sims[0].state.extra["angular_velocities"]).max() > 0
+    with pytest.raises(ValueError, match="wrenches"):
+        sims[0].apply_wrenches(w[:1])
+    with pytest.raises(ValueError, match="wrenches"):
+        sims[0].apply_wrenches(np.full((2, 6), np.nan))
+
+
 def test_surface_samples_move_with_the_body():
     v, f = box_mesh(0.2)
     body = RigidBody(v, f, sample_spacing=0.02)
