@@ -75,7 +75,8 @@ def pressure_accel(pi, x, ntab, ncnt, fw, gsum, a):
 @njit(parallel=True, cache=True, error_model="numpy")
 def jacobi(a, x, src, pi, factor, active, ntab, ncnt, fw, gsum, scale, omega, err):
     """One relaxed Jacobi update of ``pi`` (see the module docstring); ``err[i]`` gets the
-    predicted compression before the update.  Returns the mean of ``err`` (serial sum)."""
+    predicted compression before the update.  Returns the mean and the largest of ``err``
+    (serial reductions)."""
     n = pi.shape[0]
     inv = 1.0 / scale
     for i in prange(n):
@@ -91,9 +92,11 @@ def jacobi(a, x, src, pi, factor, active, ntab, ncnt, fw, gsum, scale, omega, er
         err[i] = -r if (r < 0.0 and active[i]) else 0.0
         pi[i] = max(pi[i] - omega * r * factor[i] * inv, 0.0)
     total = 0.0
+    peak = 0.0
     for i in range(n):
         total += err[i]
-    return total / n if n else 0.0
+        peak = max(peak, err[i])
+    return (total / n if n else 0.0), peak
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -134,8 +137,8 @@ def jacobi_wall(a, x, src, pi, factor, ntab, ncnt, fw, gsum, scale, omega, err, 
     acceleration the previous ones changed: with ``r_ik = wsrc_ik - scale a_i . cgb_ik`` the
     slack left to wall ``k``, ``pw_ik <- max(pw_ik - omega r_ik / (scale |cgb_ik|^2), 0)``.
     ``err`` gets the predicted compressions, ``werr`` each particle's largest wall violation
-    (fraction of the kernel).  Returns the mean compression and the largest violation (serial
-    reductions)."""
+    (fraction of the kernel).  Returns the mean and the largest compression and the largest
+    violation (serial reductions)."""
     n = pi.shape[0]
     inv = 1.0 / scale
     for i in prange(n):
@@ -172,11 +175,13 @@ def jacobi_wall(a, x, src, pi, factor, ntab, ncnt, fw, gsum, scale, omega, err, 
                     az -= d * gz
         werr[i] = worst
     total = 0.0
+    peak = 0.0
     top = 0.0
     for i in range(n):
         total += err[i]
+        peak = max(peak, err[i])
         top = max(top, werr[i])
-    return (total / n if n else 0.0), top
+    return (total / n if n else 0.0), peak, top
 
 
 @njit(parallel=True, cache=True, error_model="numpy")

@@ -445,9 +445,12 @@ def test_anisotropic_volumes_of_far_apart_clusters(spread):
 
 def test_kernels_change_continuously_with_the_positions():
     """The module's claim that a kernel never jumps between two frames: on a splashing dam
-    break (walls, a front, drops), moving every particle by up to ~1e-5 spacings changes every
-    kernel matrix by a comparable relative amount, and 100x smaller moves 100x less (measured:
-    max |dG| h 1.6e-4 at 1e-5 spacings, 2.6e-6 at 1e-7; a jump would be of order one)."""
+    break (walls, a front, drops), moving every particle by up to ~1e-5 spacings changes no
+    kernel matrix by more than a comparable relative amount, and 100x smaller moves change
+    them 100x less (a jump would be of order one).  The scaling is read on the 99th percentile
+    of the particles' changes: the largest change at 1e-7 spacings sits on the float32 sums'
+    rounding floor (measured: 9e-6 at 1e-7, 1.5e-6 at 1e-9 spacings; 99th percentile 4.6e-5 at
+    1e-5, 1.3e-6 at 1e-7)."""
     from filters.sph.scenarios import dam_break_liquid
 
     s = 0.02
@@ -457,9 +460,11 @@ def test_kernels_change_continuously_with_the_positions():
     r = 0.5 * s
     g0 = anisotropic_kernels(x, r)[1]
     noise = np.random.default_rng(0).standard_normal(x.shape) * s
-    changes = []
+    largest, p99 = [], []
     for eps in (1e-5, 1e-7):
         g1 = anisotropic_kernels(x + eps * noise, r)[1]
-        changes.append(np.abs(g1 - g0).max() * 4 * r)
-    assert changes[0] < 1e-3, changes
-    assert changes[1] < 0.05 * changes[0], changes
+        change = np.abs(g1 - g0).reshape(x.shape[0], -1).max(axis=1) * 4 * r
+        largest.append(change.max())
+        p99.append(np.percentile(change, 99))
+    assert max(largest) < 1e-3, largest
+    assert p99[1] < 0.05 * p99[0], p99
