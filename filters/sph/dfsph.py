@@ -48,11 +48,12 @@ hydrostatic a quarter of the way up at 0.01 s, as without it), but the solve no 
 with those particles compressed.  Measured on the bench dam break, worst particle after the
 first 50 ms at 10k / 200k particles: 1.6 / 6.5 % with the average alone, 1.6 / 0.93 % with both
 (SPlisHSPlasH 1.6 / 4.0 %), for -1.5 / +6.7 % density sweeps a step and +2.5 / -2 % steps.
-With 5 times the tolerance: 1.4 / 0.70 %, for 13 / 10 % more sweeps.  Tried and not kept: Chebyshev weights on the sweeps (Wang 2015, "A Chebyshev
-semi-iterative approach for accelerating projective and position-based dynamics", ACM TOG
-34(6)) reached the same tolerances in 40 % fewer sweeps, but the pressure they stop at is
-rough: a settled column's pressure gradient spread 0.049 from frame to frame instead of 0.028,
-and its particles jittered at four times the speed.
+With 5 times the tolerance: 1.4 / 0.70 %, for 13 / 10 % more sweeps.  Tried and not kept:
+Chebyshev weights on the sweeps (Wang 2015, "A Chebyshev semi-iterative approach for
+accelerating projective and position-based dynamics", ACM TOG 34(6)) reached the same
+tolerances in 40 % fewer sweeps, but the pressure they stop at is rough: a settled column's
+pressure gradient spread 0.049 from frame to frame instead of 0.028, and its particles
+jittered at four times the speed.
 
 **Walls that hold.**  Clamped at zero, the pressure cannot keep a particle that lacks fluid
 neighbours off a wall: a lone particle, or one in a sheet a particle thick, has a density below
