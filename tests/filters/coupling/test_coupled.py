@@ -112,7 +112,9 @@ def test_a_held_box_gets_about_the_hydrostatic_force(held_box):
     # measured: 0.91 rho g V (2026-11-28; 0.81 and 1.17 for boxes of 6 and 8 cm in the same 12
     # cm pool, which is not at rest: started on the lattice, its top moves by half a spacing in
     # a tenth of a second, and a box two thirds of the tank wide is pushed by that motion;
-    # earlier 0.91-0.92 for 4-8 spacings at 1 and 2 cm).  The boundary term of the pressure
+    # earlier 0.91-0.92 for 4-8 spacings at 1 and 2 cm).  With the pool settled first
+    # (filters.sph.settle, the box held in it): 0.88 and 0.79 for the 4 and 6 cm boxes, steady
+    # over 0.5 s; the 6 cm box leaves two spacings of water under and over it.  The boundary term of the pressure
     # solves carries each fluid
     # particle's own pressure once (Akinci et al. 2012; SPlisHSPlasH's factor 1): next to boundary
     # layers that complete a particle's neighbourhood that pressure cancels, the layer next to every
