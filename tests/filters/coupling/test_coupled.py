@@ -114,8 +114,8 @@ def test_a_held_box_gets_about_the_hydrostatic_force(held_box):
     # a tenth of a second, and a box two thirds of the tank wide is pushed by that motion;
     # earlier 0.91-0.92 for 4-8 spacings at 1 and 2 cm).  With the pool settled first
     # (filters.sph.settle, the box held in it): 0.88 and 0.79 for the 4 and 6 cm boxes, steady
-    # over 0.5 s; the 6 cm box leaves two spacings of water under and over it.  The boundary term of the pressure
-    # solves carries each fluid
+    # over 0.5 s; the 6 cm box leaves two spacings of water under and over it.  The boundary
+    # term of the pressure solves carries each fluid
     # particle's own pressure once (Akinci et al. 2012; SPlisHSPlasH's factor 1): next to boundary
     # layers that complete a particle's neighbourhood that pressure cancels, the layer next to every
     # wall and face is held by its fluid neighbours alone and rests at 0.27-0.31 spacings from it
