@@ -36,24 +36,27 @@ change of the density ratio that the current pressures cause.  Clamping ``pi >= 
 free surface free of tension.  The solvers stop when the **average** predicted compression
 ``mean_i max(-(s_i - (A pi)_i), 0)`` (for divergence: per step, i.e. ``dt mean max(D rho / D t,
 0) / rho0``) is below the tolerance, after at least two iterations (one for divergence), as in
-SPlisHSPlasH.  The density solve also iterates until no particle is predicted compressed by
-more than :data:`DFSPH_PEAK_ERROR` (10) times the tolerance (1 % at the default 0.1 %).  The
-average alone lets a few particles keep a large compression while it hardly moves: those
-pressed onto a wall at an impact, and in a tall released column, which sags in its first
-steps (its pressure far under hydrostatic: the Jacobi sweeps carry it up one layer at a time),
-the bottom layers next to the back wall when the column recompresses (the 118-layer bench
-column: pressure there from about 0 to three times hydrostatic within 5 ms, 0.11-0.13 s after
-the release).  The peak condition does not remove the sag (a 50-layer column at 4 mm: 1 % of
-hydrostatic a quarter of the way up at 0.01 s, as without it), but the solve no longer stops
-with those particles compressed.  Measured on the bench dam break, worst particle after the
-first 50 ms at 10k / 200k particles: 1.6 / 6.5 % with the average alone, 1.6 / 0.93 % with both
-(SPlisHSPlasH 1.6 / 4.0 %), for -1.5 / +6.7 % density sweeps a step and +2.5 / -2 % steps.
-With 5 times the tolerance: 1.4 / 0.70 %, for 13 / 10 % more sweeps.  Tried and not kept:
-Chebyshev weights on the sweeps (Wang 2015, "A Chebyshev semi-iterative approach for
-accelerating projective and position-based dynamics", ACM TOG 34(6)) reached the same
-tolerances in 40 % fewer sweeps, but the pressure they stop at is rough: a settled column's
-pressure gradient spread 0.049 from frame to frame instead of 0.028, and its particles
-jittered at four times the speed.
+SPlisHSPlasH.  This is the "pressure-as-unknown" form of the DFSPH iteration that SPlisHSPlasH
+2.x uses; it is equivalent to the paper's stiffness-increment form but keeps a non-negative total
+pressure, which is what the frames report.
+
+The density solve also iterates until no particle is predicted compressed by more than
+:data:`DFSPH_PEAK_ERROR` (10) times the tolerance (1 % at the default 0.1 %).  The average alone
+lets a few particles keep a large compression while it hardly moves: those pressed onto a wall
+at an impact, and in a tall released column, which sags in its first steps (its pressure far
+under hydrostatic: the Jacobi sweeps carry it up one layer at a time), the bottom layers next to
+the back wall when the column recompresses (the 118-layer bench column: pressure there from
+about 0 to three times hydrostatic within 5 ms, 0.11-0.13 s after the release).  The peak
+condition does not remove the sag (a 50-layer column at 4 mm: 1 % of hydrostatic a quarter of
+the way up at 0.01 s, as without it), but the solve no longer stops with those particles
+compressed.  Measured on the bench dam break, worst particle after the first 50 ms at 10k / 200k
+particles: 1.6 / 6.5 % with the average alone, 1.6 / 0.93 % with both (SPlisHSPlasH 1.6 / 4.0
+%), for -1.5 / +6.7 % density sweeps a step and +2.5 / -2 % steps.  With 5 times the tolerance:
+1.4 / 0.70 %, for 13 / 10 % more sweeps.  Tried and not kept: Chebyshev weights on the sweeps
+(Wang 2015, "A Chebyshev semi-iterative approach for accelerating projective and position-based
+dynamics", ACM TOG 34(6)) reached the same tolerances in 40 % fewer sweeps, but the pressure
+they stop at is rough: a settled column's pressure gradient spread 0.049 from frame to frame
+instead of 0.028, and its particles jittered at four times the speed.
 
 **Walls that hold.**  Clamped at zero, the pressure cannot keep a particle that lacks fluid
 neighbours off a wall: a lone particle, or one in a sheet a particle thick, has a density below
